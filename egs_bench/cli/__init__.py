@@ -13,7 +13,14 @@ from rich.console import Console
 from egs_bench.cli.app import OPTIONS, app
 from egs_bench.errors import EgsBenchError
 
-_COMMAND_MODULES = ("data_cmds", "eval_cmds", "slam_cmds")
+_COMMAND_MODULES = (
+    "data_cmds",
+    "synthetic_cmds",
+    "eventreplica_cmds",
+    "eval_cmds",
+    "render_cmds",
+    "slam_cmds",
+)
 
 
 def _register_commands() -> None:

@@ -1,0 +1,3 @@
+"""CLI commands of this area (registered on the shared app by import)."""
+
+from egs_bench.cli.app import app  # noqa: F401
