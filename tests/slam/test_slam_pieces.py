@@ -1,0 +1,216 @@
+"""Lie group, exposure trajectory, CRF, losses and keyframe rules against independent references."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+from scipy.linalg import expm
+from scipy.spatial.transform import Rotation
+
+from egs_bench.geometry import interpolate_pose, invert_pose
+from egs_bench.slam import crf as crf_mod
+from egs_bench.slam import exposure, keyframes, losses
+from egs_bench.slam.lie import invert_rigid, se3_exp, so3_exp, so3_log
+
+
+def _hat6(xi: np.ndarray) -> np.ndarray:
+    rho, th = xi[:3], xi[3:]
+    m = np.zeros((4, 4))
+    m[:3, :3] = [[0, -th[2], th[1]], [th[2], 0, -th[0]], [-th[1], th[0], 0]]
+    m[:3, 3] = rho
+    return m
+
+
+@pytest.mark.parametrize("scale", [0.0, 1e-7, 1e-3, 0.5, 2.0])
+def test_se3_exp_matches_matrix_exponential(scale: float) -> None:
+    rng = np.random.default_rng(0)
+    xi = rng.normal(size=6) * scale
+    got = se3_exp(torch.tensor(xi)).numpy()
+    np.testing.assert_allclose(got, expm(_hat6(xi)), atol=1e-12)
+
+
+def test_so3_log_inverts_exp_and_has_finite_grad_at_zero() -> None:
+    rng = np.random.default_rng(1)
+    for scale in (1e-8, 1e-3, 1.0, 2.5):
+        v = torch.tensor(rng.normal(size=3) * scale)
+        np.testing.assert_allclose(so3_log(so3_exp(v)).numpy(), v.numpy(), atol=1e-10)
+    z = torch.zeros(3, dtype=torch.float64, requires_grad=True)
+    so3_log(so3_exp(z)).sum().backward()
+    assert torch.isfinite(z.grad).all()
+    x = torch.zeros(6, dtype=torch.float64, requires_grad=True)
+    assert torch.autograd.gradcheck(lambda t: se3_exp(t), (x,))
+
+
+def _random_pose(rng: np.random.Generator, rot_scale: float = 1.0) -> np.ndarray:
+    p = np.eye(4)
+    p[:3, :3] = Rotation.from_rotvec(rng.normal(size=3) * rot_scale).as_matrix()
+    p[:3, 3] = rng.normal(size=3)
+    return p
+
+
+def test_interpolation_matches_numpy_slerp_lerp_and_is_differentiable() -> None:
+    rng = np.random.default_rng(2)
+    a_wc = _random_pose(rng)
+    b_wc = a_wc @ _random_pose(rng, 0.2)
+    fr = np.array([0.0, 0.25, 0.5, 0.9, 1.0])
+    expect_wc = interpolate_pose(a_wc, b_wc, fr)
+    got_cw = exposure.interpolate_w2c(torch.tensor(invert_pose(a_wc)),
+                                      torch.tensor(invert_pose(b_wc)), torch.tensor(fr))
+    np.testing.assert_allclose(invert_rigid(got_cw).numpy(), expect_wc, atol=1e-10)
+    xi = torch.zeros(12, dtype=torch.float64, requires_grad=True)
+    a_cw, b_cw = torch.tensor(invert_pose(a_wc)), torch.tensor(invert_pose(b_wc))
+
+    def f(x: torch.Tensor) -> torch.Tensor:
+        return exposure.interpolate_w2c(se3_exp(x[:6]) @ a_cw, se3_exp(x[6:]) @ b_cw,
+                                        torch.tensor(fr))
+    assert torch.autograd.gradcheck(f, (xi,))
+
+
+def test_subpose_fractions_equal_event_counts_and_uniform_fallback() -> None:
+    # Events dense in the first half of [0, 1000) us: boundaries must crowd there.
+    t = np.concatenate([np.linspace(0, 499, 900), np.linspace(500, 999, 100)]).astype(np.int64)
+    fr = exposure.subpose_fractions(t, 0, 1000, 4)
+    assert fr[0] == 0 and fr[-1] == 1 and np.all(np.diff(fr) > 0)
+    edges = exposure.segment_edges_us(fr, 0, 1000)
+    counts = np.histogram(t, bins=edges)[0]
+    assert counts.max() - counts.min() <= 0.05 * len(t)
+    np.testing.assert_allclose(exposure.subpose_fractions(np.array([], np.int64), 0, 1000, 4),
+                               np.linspace(0, 1, 5))
+    # One instant burst: still strictly increasing.
+    burst = exposure.subpose_fractions(np.full(100, 10, np.int64), 0, 1000, 4)
+    assert np.all(np.diff(burst) > 0) and burst[-1] == 1
+
+
+def test_crf_monotone_continuous_and_gradcheck() -> None:
+    torch.manual_seed(0)
+    crf = crf_mod.LeakyPiecewiseLinearCRF(n_nodes=8, alpha=0.01).double()
+    with torch.no_grad():
+        crf.gap_logits.copy_(torch.randn(7, dtype=torch.float64) * 2)
+    x = torch.linspace(-0.5, 3.0, 2001, dtype=torch.float64)
+    y = crf(x)
+    assert torch.all(torch.diff(y) >= 0)
+    assert abs(crf(torch.tensor([0.0], dtype=torch.float64)).item()) < 1e-12
+    assert abs(crf(torch.tensor([1.0], dtype=torch.float64)).item() - 1) < 1e-12
+    np.testing.assert_allclose(crf(torch.tensor([-2.0], dtype=torch.float64)).item(), -0.02)
+    np.testing.assert_allclose(crf(torch.tensor([4.0], dtype=torch.float64)).item(),
+                               1 + 0.01 - 0.01 / 2)
+    # The node interpolation passes through every node.
+    nodes = crf.nodes().detach()
+    np.testing.assert_allclose(crf(nodes).detach().numpy(), crf.levels.double().numpy(),
+                               atol=1e-12)
+    np.testing.assert_allclose(crf.inverse(crf(x)).detach().numpy(), x.numpy(), atol=1e-9)
+    # Gradients w.r.t. the input and the learnable nodes (points away from the knots).
+    inp = torch.tensor([-0.3, 0.013, 0.21, 0.47, 0.77, 0.95, 1.7], dtype=torch.float64,
+                       requires_grad=True)
+    assert torch.autograd.gradcheck(crf, (inp,))
+
+    levels = crf.levels.double()
+
+    def by_logits(logits: torch.Tensor) -> torch.Tensor:
+        nodes = crf_mod.nodes_from_logits(logits)
+        return crf_mod.leaky_piecewise_linear(inp.detach(), nodes, levels, 0.01)
+
+    logits = crf.gap_logits.detach().clone().requires_grad_(True)
+    assert torch.autograd.gradcheck(by_logits, (logits,))
+
+
+def test_crf_srgb_init_matches_srgb_curve() -> None:
+    crf = crf_mod.LeakyPiecewiseLinearCRF(n_nodes=64).double()
+    x = torch.linspace(0.05, 1, 50, dtype=torch.float64)
+    np.testing.assert_allclose(crf(x).detach().numpy(), crf_mod.srgb_encode(x).numpy(), atol=5e-3)
+
+
+def test_losses_against_hand_computation() -> None:
+    pred = torch.zeros(2, 2, 3, dtype=torch.float64)
+    obs = torch.zeros(2, 2, 3, dtype=torch.float64)
+    obs[0, 0] = torch.tensor([0.3, 0.6, 0.9])  # |diff| sum 1.8
+    obs[1, 1] = torch.tensor([0.003, 0.003, 0.003])  # near black -> masked by the boundary mask
+    mask = losses.rgb_boundary_mask(obs)
+    assert mask.tolist() == [[True, False], [False, False]]
+    assert losses.photometric_l1(pred, obs, mask).item() == pytest.approx(1.8 / 12)
+    w = torch.full((2, 2), 0.5, dtype=torch.float64)
+    assert losses.photometric_l1(pred, obs, mask, w).item() == pytest.approx(0.9 / 12)
+
+    d_obs = torch.tensor([[1.0, 2.0], [0.0, 4.0]], dtype=torch.float64)
+    d_pred = torch.stack([d_obs + 0.5, d_obs + 0.1, d_obs - 0.3])
+    dm = losses.depth_valid_mask(d_obs)
+    # three valid pixels, per pose mean over 4 pixels: 1.5/4, 0.3/4, 0.9/4 -> min 0.075
+    assert losses.min_depth_loss(d_pred, d_obs, dm).item() == pytest.approx(0.075)
+
+    # Event maps: two renders of a 1x2 image with luma 0.5 -> 0.8 and 0.4 -> 0.4.
+    eps = 1e-3
+    hdr = torch.tensor([[[[0.5] * 3, [0.4] * 3]], [[[0.8] * 3, [0.4] * 3]]], dtype=torch.float64)
+    pm = losses.rendered_event_maps(hdr, eps)
+    expect = np.log(0.8 + eps) - np.log(0.5 + eps)
+    assert pm[0, 0, 0].item() == pytest.approx(expect)
+    assert pm[0, 0, 1].item() == pytest.approx(0.0, abs=1e-12)
+    ev = torch.tensor([[[2, 0]]])
+    pm2 = pm + torch.tensor([[[0.0, 0.1]]], dtype=torch.float64)
+    l_he, l_ne = losses.event_loss(pm2, ev, theta_pos=0.25, theta_neg=0.3)
+    assert l_he.item() == pytest.approx(abs(0.5 - expect) / 2)
+    assert l_ne.item() == pytest.approx(0.1 / 2)
+    l_he_neg, _ = losses.event_loss(pm2, -ev, theta_pos=0.25, theta_neg=0.3)
+    assert l_he_neg.item() == pytest.approx(abs(-0.6 - expect) / 2)
+
+    s = torch.tensor([[1.0, 2.0, 3.0], [2.0, 2.0, 2.0]], dtype=torch.float64)
+    assert losses.isotropic_loss(s).item() == pytest.approx((1 + 0 + 1) / 6)
+
+
+def test_edge_mask_marks_edges_only() -> None:
+    img = np.full((64, 64, 3), 0.5, np.float32)
+    img[:, 32:] = 0.9
+    m = losses.edge_mask(img, edge_threshold=1.1, blocks=None)
+    assert m[:, 30:34].mean() > 0.4 and m[:, :28].sum() == 0 and m[:, 36:].sum() == 0
+
+
+def _vis(idx: list[int], n: int = 10) -> np.ndarray:
+    v = np.zeros(n, bool)
+    v[idx] = True
+    return v
+
+
+def _pose_at(x: float) -> np.ndarray:
+    p = np.eye(4)
+    p[0, 3] = -x  # world-to-camera of a camera at (x, 0, 0)
+    return p
+
+
+def test_keyframe_selection_rules() -> None:
+    r = keyframes.KeyframeRules(kf_interval=4, kf_overlap=0.9, kf_min_translation=0.02,
+                                kf_translation=0.04, window_size=3)
+    same = _vis(list(range(10)))
+    half = _vis(list(range(5)))
+    args = dict(last_kf_idx=0, last_kf_pose_cw=_pose_at(0.0), last_kf_vis=same, median_depth=1.0)
+    # too soon
+    assert not keyframes.is_keyframe(3, pose_cw=_pose_at(1.0), vis=half, window_len=1,
+                                     rules=r, **args)
+    # window not full: overlap decides
+    assert keyframes.is_keyframe(4, pose_cw=_pose_at(0.0), vis=half, window_len=1, rules=r, **args)
+    assert not keyframes.is_keyframe(4, pose_cw=_pose_at(1.0), vis=same, window_len=1, rules=r,
+                                     **args)
+    # window full: large translation alone, small translation needs low overlap
+    assert keyframes.is_keyframe(4, pose_cw=_pose_at(0.05), vis=same, window_len=3, rules=r, **args)
+    assert not keyframes.is_keyframe(4, pose_cw=_pose_at(0.03), vis=same, window_len=3, rules=r,
+                                     **args)
+    assert keyframes.is_keyframe(4, pose_cw=_pose_at(0.03), vis=half, window_len=3, rules=r, **args)
+    assert not keyframes.is_keyframe(4, pose_cw=_pose_at(0.01), vis=half, window_len=3, rules=r,
+                                     **args)
+
+
+def test_window_removal_overlap_then_dso() -> None:
+    r = keyframes.KeyframeRules(window_size=3, kf_cutoff=0.4)
+    vis = {0: _vis([0, 1]), 1: _vis([1, 2, 3]), 2: _vis([2, 3, 4]), 3: _vis([3, 4, 5]),
+           4: _vis([3, 4, 5])}
+    poses = {k: _pose_at(float(k)) for k in range(5)}
+    # New KF 4; window [3, 2, 1, 0]; unprotected 2, 1, 0. Overlap with 4: kf2 2/3, kf1 1/3,
+    # kf0 0 -> candidates 1 and 0, the oldest (0) goes; window [4,3,2,1] still > 3 -> DSO.
+    win, removed = keyframes.update_window([3, 2, 1, 0], 4, vis, poses, r)
+    assert removed[0] == 0 and len(win) == 3 and win[:2] == [4, 3]
+    # DSO among {2, 1}: score(2) = sqrt(2) * 1/1, score(1) = sqrt(3) * 1/1 -> remove 1.
+    assert removed[1] == 1 and win == [4, 3, 2]
+    # Nothing removed while the window has room and overlaps are high.
+    vis_all = {k: _vis(list(range(10))) for k in range(5)}
+    r_big = keyframes.KeyframeRules(window_size=10)
+    win2, removed2 = keyframes.update_window([3, 2, 1, 0], 4, vis_all, poses, r_big)
+    assert removed2 == [] and win2 == [4, 3, 2, 1, 0]
