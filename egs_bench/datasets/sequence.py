@@ -1,0 +1,406 @@
+"""The canonical sequence folder (DESIGN §3): reader with validation, and writer.
+
+```
+<seq>/meta.yaml               calibration, generator, event thresholds, exposure, camera response
+<seq>/frames.csv              index, t_start_us, t_end_us, rgb, depth, sharp
+<seq>/rgb/%06d.png            observed (blurred) 8-bit sRGB frames
+<seq>/depth/%06d.png          depth at exposure end, uint16, metres * depth_scale (0 = invalid)
+<seq>/sharp/%06d.png          sharp ground truth at exposure end (synthetic data only)
+<seq>/events.h5               DSEC-style events (see :mod:`egs_bench.datasets.events`)
+<seq>/groundtruth.txt         TUM, camera-to-world pose at each frame's exposure end
+<seq>/groundtruth_dense.txt   optional high-rate ground truth (synthetic data)
+```
+"""
+
+from __future__ import annotations
+
+import csv
+import functools
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+import yaml
+from PIL import Image
+
+from egs_bench.datasets.events import EventStream, EventWriter
+from egs_bench.errors import InputError
+from egs_bench.geometry import Intrinsics, Trajectory, read_tum, write_tum
+
+FORMAT_VERSION = 1
+FRAME_COLUMNS = ("index", "t_start_us", "t_end_us", "rgb", "depth", "sharp")
+REQUIRED_META = ("width", "height", "fx", "fy", "cx", "cy", "depth_scale")
+#: events may trail the last exposure end by this much (a sensor records continuously)
+EVENT_TIME_MARGIN_US = 1_000_000
+
+
+def read_meta(path: Path) -> dict[str, Any]:
+    """Read and check ``meta.yaml``; raises :class:`InputError` naming the file."""
+    if not path.is_file():
+        raise InputError(path, "meta.yaml not found (is this a sequence folder?)")
+    try:
+        meta = yaml.safe_load(path.read_text())
+    except yaml.YAMLError as exc:
+        raise InputError(path, f"not valid YAML ({exc})") from None
+    if not isinstance(meta, dict):
+        raise InputError(path, "expected a mapping of keys to values")
+    missing = [k for k in REQUIRED_META if k not in meta]
+    if missing:
+        raise InputError(path, f"missing keys: {', '.join(missing)}")
+    for key in REQUIRED_META:
+        value = meta[key]
+        if not isinstance(value, int | float) or not np.isfinite(value) or value <= 0:
+            raise InputError(path, f"{key} must be a positive number, got {value!r}")
+    for key in ("width", "height"):
+        if int(meta[key]) != meta[key]:
+            raise InputError(path, f"{key} must be an integer")
+    return meta
+
+
+def _read_frames_csv(path: Path) -> list[dict[str, str]]:
+    if not path.is_file():
+        raise InputError(path, "frames.csv not found")
+    with path.open(newline="") as handle:
+        reader = csv.DictReader(handle)
+        missing = [c for c in FRAME_COLUMNS[:5] if c not in (reader.fieldnames or [])]
+        if missing:
+            raise InputError(path, f"missing columns: {', '.join(missing)}")
+        rows = list(reader)
+    if not rows:
+        raise InputError(path, "no frames listed")
+    return rows
+
+
+class Sequence:
+    """A validated canonical sequence folder. Images are read lazily; see the module docstring.
+
+    Use :meth:`open`. All times are int64 microseconds; poses are ``T_wc`` [4, 4] float64.
+    """
+
+    def __init__(self, path: Path, meta: dict[str, Any], frames: list[dict[str, str]],
+                 groundtruth: Trajectory, events: EventStream | None) -> None:
+        self.path = path
+        self.meta = meta
+        self._frames = frames
+        self._groundtruth = groundtruth
+        self._events = events
+        self.t_start_us = np.array([int(r["t_start_us"]) for r in frames], dtype=np.int64)
+        self.t_end_us = np.array([int(r["t_end_us"]) for r in frames], dtype=np.int64)
+
+    # ---------------------------------------------------------------- opening and checks
+    @classmethod
+    def open(cls, path: str | Path, check_images: bool = True) -> Sequence:
+        """Open and validate a sequence folder.
+
+        Checks: required files exist; meta.yaml keys; frames.csv columns, indices, non-empty
+        and non-overlapping exposure windows; one ground-truth pose per frame at exposure end;
+        every listed image exists and (with ``check_images``) has the right size (header only);
+        the event file's sorting, time range, coordinates and index.
+
+        Raises:
+            InputError: naming the offending file and the problem.
+        """
+        path = Path(path)
+        if not path.is_dir():
+            raise InputError(path, "sequence folder not found")
+        meta = read_meta(path / "meta.yaml")
+        frames = _read_frames_csv(path / "frames.csv")
+        _check_frame_table(path / "frames.csv", frames)
+        gt_path = path / "groundtruth.txt"
+        groundtruth = read_tum(gt_path)
+        if len(groundtruth) != len(frames):
+            raise InputError(gt_path, f"{len(groundtruth)} poses for {len(frames)} frames "
+                                      "(need one pose per frame)")
+        t_end = np.array([int(r["t_end_us"]) for r in frames], dtype=np.float64) * 1e-6
+        if np.abs(groundtruth.timestamps - t_end).max() > 2e-6:
+            raise InputError(gt_path, "pose timestamps differ from the frames' exposure ends")
+        width, height = int(meta["width"]), int(meta["height"])
+        _check_images(path, frames, width, height, check_images)
+        events = None
+        if meta.get("has_events", True):
+            t_max = int(frames[-1]["t_end_us"]) + EVENT_TIME_MARGIN_US
+            events = EventStream(path / "events.h5", width, height, t_max_us=t_max)
+        return cls(path, meta, frames, groundtruth, events)
+
+    # ---------------------------------------------------------------- properties
+    def __len__(self) -> int:
+        return len(self._frames)
+
+    def __repr__(self) -> str:
+        return f"Sequence({self.name!r}, {len(self)} frames, {self.width}x{self.height})"
+
+    @property
+    def name(self) -> str:
+        return str(self.meta.get("name", self.path.name))
+
+    @property
+    def width(self) -> int:
+        return int(self.meta["width"])
+
+    @property
+    def height(self) -> int:
+        return int(self.meta["height"])
+
+    @functools.cached_property
+    def intrinsics(self) -> Intrinsics:
+        m = self.meta
+        return Intrinsics(float(m["fx"]), float(m["fy"]), float(m["cx"]), float(m["cy"]),
+                          self.width, self.height)
+
+    @property
+    def eps(self) -> float:
+        return float(self.meta.get("eps", 1e-3))
+
+    @property
+    def pos_threshold(self) -> float:
+        return float(self.meta.get("event_thresholds", {}).get("pos", 0.25))
+
+    @property
+    def neg_threshold(self) -> float:
+        return float(self.meta.get("event_thresholds", {}).get("neg", 0.25))
+
+    @property
+    def exposure_us(self) -> int:
+        return int(np.median(self.t_end_us - self.t_start_us))
+
+    @property
+    def depth_scale(self) -> float:
+        return float(self.meta["depth_scale"])
+
+    @property
+    def timestamps_s(self) -> np.ndarray:
+        """Exposure ends in seconds, [N] float64 (the TUM stamps of the ground truth)."""
+        return self._groundtruth.timestamps
+
+    @property
+    def poses(self) -> np.ndarray:
+        """Ground-truth ``T_wc`` at each exposure end, [N, 4, 4] float64."""
+        return self._groundtruth.poses
+
+    @functools.cached_property
+    def dense_trajectory(self) -> Trajectory | None:
+        path = self.path / "groundtruth_dense.txt"
+        return read_tum(path) if path.is_file() else None
+
+    @property
+    def has_events(self) -> bool:
+        return self._events is not None
+
+    @property
+    def events(self) -> EventStream:
+        if self._events is None:
+            raise InputError(self.path / "meta.yaml", "this sequence has no events")
+        return self._events
+
+    @property
+    def has_sharp(self) -> bool:
+        return bool(self._frames[0].get("sharp"))
+
+    # ---------------------------------------------------------------- frame data
+    def _frame_file(self, i: int, column: str) -> Path | None:
+        name = self._frames[i].get(column) or ""
+        return self.path / name if name else None
+
+    def rgb(self, i: int) -> np.ndarray:
+        """Observed (blurred) LDR frame ``i``: uint8 [H, W, 3], sRGB."""
+        return _read_rgb(self._frame_file(i, "rgb"), self.width, self.height)
+
+    def sharp(self, i: int) -> np.ndarray | None:
+        """Sharp ground truth at exposure end of frame ``i``: uint8 [H, W, 3], or None."""
+        path = self._frame_file(i, "sharp")
+        return _read_rgb(path, self.width, self.height) if path else None
+
+    def depth(self, i: int) -> np.ndarray:
+        """Depth at exposure end of frame ``i``: float32 [H, W] metres, 0 = invalid."""
+        return _read_depth(self._frame_file(i, "depth"), self.width, self.height,
+                           self.depth_scale)
+
+    def exposure(self, i: int) -> tuple[int, int]:
+        """Exposure window ``(t_start_us, t_end_us)`` of frame ``i``."""
+        return int(self.t_start_us[i]), int(self.t_end_us[i])
+
+    def event_maps(self, i: int, edges_us: np.ndarray | None = None, k: int = 1) -> np.ndarray:
+        """Signed event counts over sub-windows of frame ``i``'s exposure: int32 [K, H, W].
+
+        ``edges_us`` [K+1] defaults to ``k`` equal sub-windows of the exposure.
+        """
+        if edges_us is None:
+            t0, t1 = self.exposure(i)
+            edges_us = np.round(np.linspace(t0, t1, k + 1)).astype(np.int64)
+        return self.events.event_maps(edges_us)
+
+    def validate_contents(self) -> None:
+        """Decode every image and depth map (slow; ``egs-bench info`` runs it)."""
+        for i in range(len(self)):
+            self.rgb(i)
+            self.depth(i)
+            self.sharp(i)
+
+
+def _check_frame_table(path: Path, frames: list[dict[str, str]]) -> None:
+    try:
+        index = np.array([int(r["index"]) for r in frames])
+        t0 = np.array([int(r["t_start_us"]) for r in frames], dtype=np.int64)
+        t1 = np.array([int(r["t_end_us"]) for r in frames], dtype=np.int64)
+    except (TypeError, ValueError) as exc:
+        raise InputError(path, f"index/t_start_us/t_end_us must be integers ({exc})") from None
+    if (index != np.arange(len(frames))).any():
+        raise InputError(path, "frame indices must be 0, 1, 2, ... in order")
+    empty = t1 <= t0
+    if empty.any():
+        raise InputError(path, f"frame {int(np.argmax(empty))}: empty exposure window "
+                               "(t_end_us <= t_start_us)")
+    overlap = t0[1:] < t1[:-1]
+    if overlap.any():
+        i = int(np.argmax(overlap)) + 1
+        raise InputError(path, f"frame {i}: exposure starts at {t0[i]} us, before frame {i - 1}'s "
+                               f"exposure ends ({t1[i - 1]} us)")
+    for r in frames:
+        if not r.get("rgb") or not r.get("depth"):
+            raise InputError(path, f"frame {r['index']}: empty rgb or depth file name")
+
+
+def _check_images(root: Path, frames: list[dict[str, str]], width: int, height: int,
+                  check_size: bool) -> None:
+    for r in frames:
+        for column in ("rgb", "depth", "sharp"):
+            name = r.get(column) or ""
+            if not name:
+                continue
+            file = root / name
+            if not file.is_file():
+                raise InputError(file, f"{column} image of frame {r['index']} not found")
+            if check_size:
+                try:
+                    with Image.open(file) as img:
+                        size = img.size
+                except Exception as exc:  # noqa: BLE001 (PIL raises many kinds on bad files)
+                    raise InputError(file, f"unreadable image ({exc})") from None
+                if size != (width, height):
+                    raise InputError(file, f"image is {size[0]}x{size[1]}, expected "
+                                           f"{width}x{height} (meta.yaml)")
+
+
+def _read_rgb(path: Path | None, width: int, height: int) -> np.ndarray:
+    if path is None:
+        raise ValueError("no image")
+    img = cv2.imread(str(path), cv2.IMREAD_COLOR)
+    if img is None:
+        raise InputError(path, "unreadable image")
+    if img.shape[:2] != (height, width):
+        raise InputError(path, f"image is {img.shape[1]}x{img.shape[0]}, expected {width}x{height}")
+    return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
+
+
+def _read_depth(path: Path | None, width: int, height: int, scale: float) -> np.ndarray:
+    if path is None:
+        raise ValueError("no depth image")
+    if path.suffix == ".npy":
+        try:
+            depth = np.load(path).astype(np.float32)
+        except (OSError, ValueError) as exc:
+            raise InputError(path, f"unreadable depth array ({exc})") from None
+    else:
+        raw = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+        if raw is None:
+            raise InputError(path, "unreadable depth image")
+        if raw.dtype != np.uint16 or raw.ndim != 2:
+            raise InputError(path, f"depth PNG must be single-channel uint16, got {raw.dtype} "
+                                   f"with shape {raw.shape}")
+        depth = raw.astype(np.float32) / np.float32(scale)
+    if depth.shape != (height, width):
+        raise InputError(path, f"depth is {depth.shape[1]}x{depth.shape[0]}, expected "
+                               f"{width}x{height}")
+    if not np.isfinite(depth).all():
+        raise InputError(path, "depth contains NaN or infinite values")
+    if (depth < 0).any():
+        raise InputError(path, "depth contains negative values")
+    return depth
+
+
+class SequenceWriter:
+    """Writes a canonical sequence folder frame by frame (use inside ``atomic_path``).
+
+    Args:
+        root: the (temporary) folder to fill; created if needed.
+        meta: ``meta.yaml`` contents; must include the keys of ``REQUIRED_META``.
+        t_offset_us: event time offset stored in ``events.h5`` (``None``: no event file).
+        with_sharp: whether frames carry a sharp ground-truth image.
+    """
+
+    def __init__(self, root: Path, meta: dict[str, Any], t_offset_us: int | None = 0,
+                 with_sharp: bool = True) -> None:
+        missing = [k for k in REQUIRED_META if k not in meta]
+        if missing:
+            raise ValueError(f"meta lacks {missing}")
+        self.root = Path(root)
+        self.meta = dict(meta)
+        self.meta["format_version"] = FORMAT_VERSION
+        self.meta["has_events"] = t_offset_us is not None
+        self.with_sharp = with_sharp
+        for sub in ("rgb", "depth") + (("sharp",) if with_sharp else ()):
+            (self.root / sub).mkdir(parents=True, exist_ok=True)
+        self.events = EventWriter(self.root / "events.h5", t_offset_us) \
+            if t_offset_us is not None else None
+        self._rows: list[dict[str, Any]] = []
+        self._poses: list[np.ndarray] = []
+
+    def add_frame(self, t_start_us: int, t_end_us: int, rgb: np.ndarray, depth: np.ndarray,
+                  pose: np.ndarray, sharp: np.ndarray | None = None) -> int:
+        """Write frame images; ``rgb``/``sharp`` uint8 [H, W, 3], ``depth`` float [H, W] metres,
+        ``pose`` the ``T_wc`` at exposure end. Returns the frame index."""
+        i = len(self._rows)
+        name = f"{i:06d}.png"
+        cv2.imwrite(str(self.root / "rgb" / name), cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR))
+        cv2.imwrite(str(self.root / "depth" / name), encode_depth(depth, self.meta["depth_scale"]))
+        if self.with_sharp:
+            if sharp is None:
+                raise ValueError("sharp image required (with_sharp=True)")
+            cv2.imwrite(str(self.root / "sharp" / name), cv2.cvtColor(sharp, cv2.COLOR_RGB2BGR))
+        self._rows.append({
+            "index": i, "t_start_us": int(t_start_us), "t_end_us": int(t_end_us),
+            "rgb": f"rgb/{name}", "depth": f"depth/{name}",
+            "sharp": f"sharp/{name}" if self.with_sharp else "",
+        })
+        self._poses.append(np.asarray(pose, dtype=np.float64))
+        return i
+
+    def finish(self, dense_times_us: np.ndarray | None = None,
+               dense_poses: np.ndarray | None = None) -> None:
+        """Write frames.csv, groundtruth(.txt, _dense.txt), meta.yaml and close events."""
+        if self.events is not None:
+            self.events.close()
+        with (self.root / "frames.csv").open("w", newline="") as handle:
+            writer = csv.DictWriter(handle, fieldnames=FRAME_COLUMNS)
+            writer.writeheader()
+            writer.writerows(self._rows)
+        t_end = np.array([r["t_end_us"] for r in self._rows], dtype=np.int64)
+        write_tum(self.root / "groundtruth.txt", t_end * 1e-6, np.stack(self._poses))
+        if dense_times_us is not None and dense_poses is not None:
+            write_tum(self.root / "groundtruth_dense.txt",
+                      np.asarray(dense_times_us, dtype=np.int64) * 1e-6, dense_poses)
+        self.meta["num_frames"] = len(self._rows)
+        (self.root / "meta.yaml").write_text(yaml.safe_dump(_plain(self.meta), sort_keys=False))
+
+
+def encode_depth(depth_m: np.ndarray, scale: float) -> np.ndarray:
+    """Metres [H, W] -> uint16 PNG values; depths beyond the 16-bit range become 0 (invalid)."""
+    scaled = np.round(np.nan_to_num(np.asarray(depth_m, dtype=np.float64), nan=0.0) * scale)
+    scaled[(scaled > 65535) | (scaled < 0)] = 0
+    return scaled.astype(np.uint16)
+
+
+def _plain(value: Any) -> Any:
+    """Convert numpy scalars/arrays inside ``value`` to plain Python for YAML."""
+    if isinstance(value, dict):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_plain(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, Path):
+        return str(value)
+    return value
