@@ -1,0 +1,351 @@
+"""Tile kernels of the CPU backend (numba): binning, forward compositing, hand-written backward.
+
+Why hand-written: no maintained library composites Gaussians on a CPU (gsplat's rasteriser is
+CUDA-only, taichi-splatting's kernels are GPU-only, warp's autodiff gets the compositing loop
+wrong; see ``research/rasterizer.md``). The kernels implement the rule of
+:mod:`egs_bench.render.constants`:
+
+* ``bin_tiles``: per camera, walk the Gaussians in depth order and append each one to the
+  16x16 tiles its ``alpha >= 1/255`` box touches (a counting sort, so lists stay depth-sorted).
+* ``raster_fwd``: parallel over (camera, tile); every Gaussian is evaluated only on the pixels
+  of each row where its ``alpha >= 1/255`` ellipse lies (exact span from the conic, then the
+  alpha test as usual), clipped to the tile.
+* ``raster_bwd``: replays each pixel back to front from its last contributor, recovering the
+  transmittance by division (``alpha <= 0.99``). Each (tile, Gaussian) pair writes its own
+  gradient row, so there are no atomics and results are deterministic; ``reduce_rows`` then sums
+  rows per Gaussian in a fixed order.
+
+Float32 inputs keep float32 arithmetic: constants come in a dtype-typed table.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+TILE = 16  # must equal constants.TILE_SIZE (kept literal so numba sees a compile-time constant)
+NGRAD = 10  # gradient row: mx, my, a, b, c, r, g, b, opacity, depth
+SPAN_PAD = 1e-3  # px: widens the exact row span so rounding never drops a boundary pixel
+
+
+@njit(inline="always")
+def _box(mx, my, rx, ry, W, H):  # noqa: N803
+    """Pixel index box whose centres lie within ``(mx +- rx, my +- ry)``, clipped to the
+    image; ok=False when empty or culled (rx < 0)."""
+    if not (rx > 0.0):
+        return False, 0, 0, 0, 0
+    fu0 = min(max(math.ceil(mx - rx - 0.5), -1.0), W)
+    fu1 = min(max(math.floor(mx + rx - 0.5), -1.0), W)
+    fv0 = min(max(math.ceil(my - ry - 0.5), -1.0), H)
+    fv1 = min(max(math.floor(my + ry - 0.5), -1.0), H)
+    if fu0 > fu1 or fv0 > fv1 or fu0 > W - 1 or fu1 < 0 or fv0 > H - 1 or fv1 < 0:
+        return False, 0, 0, 0, 0
+    return (True, int(max(fu0, 0.0)), int(min(fu1, W - 1.0)), int(max(fv0, 0.0)),
+            int(min(fv1, H - 1.0)))
+
+
+@njit(inline="always")
+def _row_span(dy, ca, cb, cc, m2, mx, u0, u1):
+    """Pixels ``[ua, ub]`` of one row (offset ``dy`` from the centre) inside the ellipse
+    ``a dx^2 + 2 b dx dy + c dy^2 <= m2``, intersected with ``[u0, u1]``; empty if ua > ub."""
+    bdy = cb * dy
+    disc = bdy * bdy - ca * (cc * dy * dy - m2)
+    if disc < 0.0:
+        return 1, 0
+    s = math.sqrt(disc)
+    lo = mx + (-bdy - s) / ca - 0.5 - SPAN_PAD
+    hi = mx + (-bdy + s) / ca - 0.5 + SPAN_PAD
+    ua = u0 if lo < u0 else int(math.ceil(lo))
+    ub = u1 if hi > u1 else int(math.floor(hi))
+    return ua, ub
+
+
+@njit(cache=True, parallel=True)
+def bin_tiles(mean2d, ext, order, W, H):  # noqa: N803
+    """Tile lists for C cameras.
+
+    Args: mean2d [C,N,2], ext [C,N,2] (negative = culled), order [C,N] int32 (depth order).
+    Returns: isect [M] int32 Gaussian ids and offsets [C*T+1] int64; tile ``kt = k*T + t``
+    owns ``isect[offsets[kt]:offsets[kt+1]]``, in depth order.
+    """
+    C, N = order.shape
+    TX = (W + TILE - 1) // TILE
+    TY = (H + TILE - 1) // TILE
+    T = TX * TY
+    counts = np.zeros(C * T, np.int64)
+    for k in prange(C):
+        for ii in range(N):
+            g = order[k, ii]
+            ok, u0, u1, v0, v1 = _box(mean2d[k, g, 0], mean2d[k, g, 1], ext[k, g, 0],
+                                      ext[k, g, 1], W, H)
+            if ok:
+                for ty in range(v0 // TILE, v1 // TILE + 1):
+                    for tx in range(u0 // TILE, u1 // TILE + 1):
+                        counts[k * T + ty * TX + tx] += 1
+    offsets = np.zeros(C * T + 1, np.int64)
+    offsets[1:] = np.cumsum(counts)
+    isect = np.empty(offsets[-1], np.int32)
+    fill = offsets[:-1].copy()
+    for k in prange(C):
+        for ii in range(N):
+            g = order[k, ii]
+            ok, u0, u1, v0, v1 = _box(mean2d[k, g, 0], mean2d[k, g, 1], ext[k, g, 0],
+                                      ext[k, g, 1], W, H)
+            if ok:
+                for ty in range(v0 // TILE, v1 // TILE + 1):
+                    for tx in range(u0 // TILE, u1 // TILE + 1):
+                        kt = k * T + ty * TX + tx
+                        isect[fill[kt]] = g
+                        fill[kt] += 1
+    return isect, offsets
+
+
+@njit(cache=True, parallel=True, fastmath=True)
+def raster_fwd(mean2d, conic, depth, opac, m2s, colors, ext, isect, offsets, W, H,  # noqa: N803
+               out_rgb, out_depth, out_T, out_last, touch, consts, centre):
+    """Forward compositing. Writes rgb [C,H,W,3], depth [C,H,W], final transmittance
+    [C,H,W], index into ``isect`` of each pixel's last contributor [C,H,W] (-1: none) and,
+    per intersection, the number of pixels it touched with T after it > TOUCH_T."""
+    HALF, AMAX, AMIN, TMIN, ONE, TOUCH = (consts[0], consts[1], consts[2], consts[3],
+                                          consts[4], consts[5])
+    C = mean2d.shape[0]
+    TX = (W + TILE - 1) // TILE
+    TY = (H + TILE - 1) // TILE
+    T = TX * TY
+    for kt in prange(C * T):
+        k = kt // T
+        t = kt - k * T
+        ty = t // TX
+        tx = t - ty * TX
+        px0 = tx * TILE
+        py0 = ty * TILE
+        px1 = min(px0 + TILE, W)
+        py1 = min(py0 + TILE, H)
+        npix = (px1 - px0) * (py1 - py0)
+        P = TILE * TILE
+        Tr = np.ones(P, mean2d.dtype)
+        acc = np.zeros((P, 4), mean2d.dtype)
+        last = np.full(P, -1, np.int64)
+        done = np.zeros(P, np.bool_)
+        ndone = 0
+        for j in range(offsets[kt], offsets[kt + 1]):
+            g = isect[j]
+            mx = mean2d[k, g, 0]
+            my = mean2d[k, g, 1]
+            ok, u0, u1, v0, v1 = _box(mx, my, ext[k, g, 0], ext[k, g, 1], W, H)
+            u0 = max(u0, px0)
+            u1 = min(u1, px1 - 1)
+            v0 = max(v0, py0)
+            v1 = min(v1, py1 - 1)
+            if not ok or u0 > u1 or v0 > v1:
+                continue
+            ca = conic[k, g, 0]
+            cb = conic[k, g, 1]
+            cc = conic[k, g, 2]
+            o = opac[g]
+            m2 = m2s[g]
+            cr = colors[g, 0]
+            cg = colors[g, 1]
+            cbl = colors[g, 2]
+            z = depth[k, g]
+            ntouch = 0
+            for v in range(v0, v1 + 1):
+                dy = centre[v] - my
+                ua, ub = _row_span(dy, ca, cb, cc, m2, mx, u0, u1)
+                row = (v - py0) * TILE - px0
+                for u in range(ua, ub + 1):
+                    p = row + u
+                    if done[p]:
+                        continue
+                    dx = centre[u] - mx
+                    power = -HALF * (ca * dx * dx + cc * dy * dy) - cb * dx * dy
+                    if power > 0:
+                        continue
+                    alpha = min(o * math.exp(power), AMAX)
+                    if alpha < AMIN:
+                        continue
+                    Tp = Tr[p]
+                    tT = Tp * (ONE - alpha)
+                    if tT < TMIN:
+                        done[p] = True
+                        ndone += 1
+                        continue
+                    w = alpha * Tp
+                    acc[p, 0] += w * cr
+                    acc[p, 1] += w * cg
+                    acc[p, 2] += w * cbl
+                    acc[p, 3] += w * z
+                    Tr[p] = tT
+                    last[p] = j
+                    if tT > TOUCH:
+                        ntouch += 1
+            touch[j] = ntouch
+            if ndone == npix:
+                break
+        for v in range(py0, py1):
+            for u in range(px0, px1):
+                p = (v - py0) * TILE + (u - px0)
+                out_rgb[k, v, u, 0] = acc[p, 0]
+                out_rgb[k, v, u, 1] = acc[p, 1]
+                out_rgb[k, v, u, 2] = acc[p, 2]
+                out_depth[k, v, u] = acc[p, 3]
+                out_T[k, v, u] = Tr[p]
+                out_last[k, v, u] = last[p]
+
+
+@njit(cache=True, parallel=True, fastmath=True)
+def raster_bwd(mean2d, conic, depth, opac, m2s, colors, ext, isect, offsets, W, H,  # noqa: N803
+               out_T, out_last, g_rgb, g_depth, g_alpha, rows, consts, centre):
+    """Backward of :func:`raster_fwd`: fills ``rows[j]`` (one per intersection) with
+    dL/d(mx, my, a, b, c, r, g, b, opacity, z) of that Gaussian restricted to that tile."""
+    HALF, AMAX, AMIN, ONE = consts[0], consts[1], consts[2], consts[4]
+    C = mean2d.shape[0]
+    TX = (W + TILE - 1) // TILE
+    TY = (H + TILE - 1) // TILE
+    T = TX * TY
+    for kt in prange(C * T):
+        k = kt // T
+        t = kt - k * T
+        ty = t // TX
+        tx = t - ty * TX
+        px0 = tx * TILE
+        py0 = ty * TILE
+        px1 = min(px0 + TILE, W)
+        py1 = min(py0 + TILE, H)
+        P = TILE * TILE
+        Tr = np.ones(P, mean2d.dtype)
+        Tf = np.ones(P, mean2d.dtype)
+        last = np.full(P, -1, np.int64)
+        dC = np.zeros((P, 3), mean2d.dtype)
+        dD = np.zeros(P, mean2d.dtype)
+        dA = np.zeros(P, mean2d.dtype)
+        accC = np.zeros((P, 3), mean2d.dtype)
+        accD = np.zeros(P, mean2d.dtype)
+        jmax = -1
+        for v in range(py0, py1):
+            for u in range(px0, px1):
+                p = (v - py0) * TILE + (u - px0)
+                Tr[p] = out_T[k, v, u]
+                Tf[p] = out_T[k, v, u]
+                last[p] = out_last[k, v, u]
+                jmax = max(jmax, last[p])
+                dC[p, 0] = g_rgb[k, v, u, 0]
+                dC[p, 1] = g_rgb[k, v, u, 1]
+                dC[p, 2] = g_rgb[k, v, u, 2]
+                dD[p] = g_depth[k, v, u]
+                dA[p] = g_alpha[k, v, u]
+        for j in range(jmax, offsets[kt] - 1, -1):
+            g = isect[j]
+            mx = mean2d[k, g, 0]
+            my = mean2d[k, g, 1]
+            ok, u0, u1, v0, v1 = _box(mx, my, ext[k, g, 0], ext[k, g, 1], W, H)
+            u0 = max(u0, px0)
+            u1 = min(u1, px1 - 1)
+            v0 = max(v0, py0)
+            v1 = min(v1, py1 - 1)
+            if not ok or u0 > u1 or v0 > v1:
+                continue
+            ca = conic[k, g, 0]
+            cb = conic[k, g, 1]
+            cc = conic[k, g, 2]
+            o = opac[g]
+            m2 = m2s[g]
+            cr = colors[g, 0]
+            cg = colors[g, 1]
+            cbl = colors[g, 2]
+            z = depth[k, g]
+            s_mx = ONE - ONE
+            s_my = s_mx
+            s_a = s_mx
+            s_b = s_mx
+            s_c = s_mx
+            s_r = s_mx
+            s_g = s_mx
+            s_bl = s_mx
+            s_o = s_mx
+            s_z = s_mx
+            for v in range(v0, v1 + 1):
+                dy = centre[v] - my
+                ua, ub = _row_span(dy, ca, cb, cc, m2, mx, u0, u1)
+                row = (v - py0) * TILE - px0
+                for u in range(ua, ub + 1):
+                    p = row + u
+                    if j > last[p]:
+                        continue
+                    dx = centre[u] - mx
+                    power = -HALF * (ca * dx * dx + cc * dy * dy) - cb * dx * dy
+                    if power > 0:
+                        continue
+                    G = math.exp(power)
+                    og = o * G
+                    alpha = min(og, AMAX)
+                    if alpha < AMIN:
+                        continue
+                    one_m = ONE - alpha
+                    Ti = Tr[p] / one_m  # transmittance in front of this Gaussian
+                    w = alpha * Ti
+                    s_r += w * dC[p, 0]
+                    s_g += w * dC[p, 1]
+                    s_bl += w * dC[p, 2]
+                    s_z += w * dD[p]
+                    # dL/dalpha: this Gaussian's colour/depth minus what lies behind it, plus
+                    # the final-alpha term (alpha_img = 1 - prod(1 - alpha_i)).
+                    dal = (Ti * ((cr - accC[p, 0]) * dC[p, 0] + (cg - accC[p, 1]) * dC[p, 1]
+                                 + (cbl - accC[p, 2]) * dC[p, 2] + (z - accD[p]) * dD[p])
+                           + dA[p] * Tf[p] / one_m)
+                    accC[p, 0] = alpha * cr + one_m * accC[p, 0]
+                    accC[p, 1] = alpha * cg + one_m * accC[p, 1]
+                    accC[p, 2] = alpha * cbl + one_m * accC[p, 2]
+                    accD[p] = alpha * z + one_m * accD[p]
+                    Tr[p] = Ti
+                    if og <= AMAX:  # a clamped alpha has no gradient
+                        s_o += G * dal
+                        dp = og * dal  # dL/dpower
+                        s_mx += dp * (ca * dx + cb * dy)
+                        s_my += dp * (cb * dx + cc * dy)
+                        s_a -= HALF * dp * dx * dx
+                        s_b -= dp * dx * dy
+                        s_c -= HALF * dp * dy * dy
+            rows[j, 0] = s_mx
+            rows[j, 1] = s_my
+            rows[j, 2] = s_a
+            rows[j, 3] = s_b
+            rows[j, 4] = s_c
+            rows[j, 5] = s_r
+            rows[j, 6] = s_g
+            rows[j, 7] = s_bl
+            rows[j, 8] = s_o
+            rows[j, 9] = s_z
+
+
+@njit(cache=True, parallel=True)
+def reduce_rows(isect, offsets, rows, T, out):  # noqa: N803
+    """``out[k, g] += rows[j]`` for every intersection j of camera k (parallel over cameras,
+    sequential and therefore deterministic within one)."""
+    C = out.shape[0]
+    ncol = rows.shape[1]
+    for k in prange(C):
+        for j in range(offsets[k * T], offsets[(k + 1) * T]):
+            g = isect[j]
+            for c in range(ncol):
+                out[k, g, c] += rows[j, c]
+
+
+@njit(cache=True, parallel=True)
+def reduce_touch(isect, offsets, touch, T, out):  # noqa: N803
+    """``out[k, g] = True`` where any intersection of Gaussian g in camera k touched a pixel."""
+    C = out.shape[0]
+    for k in prange(C):
+        for j in range(offsets[k * T], offsets[(k + 1) * T]):
+            if touch[j] > 0:
+                out[k, isect[j]] = True
+
+
+def tables(dtype: np.dtype, alpha_max: float, alpha_min: float, t_min: float, touch_t: float,
+           size: int) -> tuple[np.ndarray, np.ndarray]:
+    """Constants table and pixel-centre coordinates (``i + 0.5``) in the data dtype."""
+    consts = np.array([0.5, alpha_max, alpha_min, t_min, 1.0, touch_t], dtype)
+    centre = np.arange(size, dtype=dtype) + dtype.type(0.5)
+    return consts, centre
