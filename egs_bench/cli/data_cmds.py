@@ -1,3 +1,51 @@
-"""CLI commands of this area (registered on the shared app by import)."""
+"""CLI commands to look at sequences: ``info`` and ``show``."""
 
-from egs_bench.cli.app import app  # noqa: F401
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+from rich.console import Console
+from rich.table import Table
+
+from egs_bench.cli.app import app
+
+
+@app.command("info")
+def info(
+    seq: Path = typer.Argument(..., help="Sequence folder (canonical format: meta.yaml, ...)."),
+    check: bool = typer.Option(
+        True, "--check/--no-check", help="Decode every image and depth map to validate them."
+    ),
+) -> None:
+    """Print a summary of a sequence: frames, duration, resolution, intrinsics, events, blur."""
+    from egs_bench.datasets.inspect import sequence_summary
+    from egs_bench.datasets.sequence import Sequence
+
+    sequence = Sequence.open(seq)
+    if check:
+        sequence.validate_contents()
+    table = Table(title=f"sequence {sequence.name}", show_header=False)
+    for key, value in sequence_summary(sequence).items():
+        if isinstance(value, dict):
+            value = ", ".join(f"{k}={v}" for k, v in value.items())
+        table.add_row(key, str(value))
+    Console().print(table)
+
+
+@app.command("show")
+def show(
+    seq: Path = typer.Argument(..., help="Sequence folder."),
+    frame: int = typer.Option(0, "--frame", "-f", help="Frame index to show."),
+    out: Path = typer.Option(..., "--out", "-o", help="PNG file to write."),
+) -> None:
+    """Write a PNG panel of one frame: observed, sharp GT, depth and the exposure's event map."""
+    from egs_bench.datasets.inspect import save_frame_panel
+    from egs_bench.datasets.sequence import Sequence
+    from egs_bench.errors import ConfigError
+
+    sequence = Sequence.open(seq)
+    if not 0 <= frame < len(sequence):
+        raise ConfigError(f"--frame {frame} out of range: {seq} has {len(sequence)} frames")
+    save_frame_panel(sequence, frame, out)
+    Console().print(f"wrote {out}")

@@ -132,7 +132,7 @@ class Sequence:
 
     @property
     def name(self) -> str:
-        return str(self.meta.get("name", self.path.name))
+        return str(self.meta.get("name") or self.path.name)
 
     @property
     def width(self) -> int:
