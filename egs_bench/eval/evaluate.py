@@ -1,0 +1,231 @@
+"""Evaluate one run folder under a protocol and write its ``metrics.json``.
+
+``metrics.json`` holds every number (summary and per frame), the full protocol, the run's identity
+and status, and the versions of the tools that computed it. It contains no time stamps or
+machine-specific paths, so evaluating the same run twice writes byte-identical files.
+"""
+
+from __future__ import annotations
+
+import importlib.metadata
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from egs_bench import __version__
+from egs_bench.errors import InputError
+from egs_bench.eval.ate import compute_ate
+from egs_bench.eval.image_metrics import psnr, psnr_masked, ssim
+from egs_bench.eval.protocols import DEFAULT_PROTOCOL, Protocol, get_protocol
+from egs_bench.eval.run_folder import RunFolder
+from egs_bench.fileio import write_text_atomic
+from egs_bench.geometry import Trajectory, read_tum
+
+METRICS_SCHEMA_VERSION = 1
+
+
+def _tool_versions() -> dict[str, str]:
+    out = {"egs_bench": __version__}
+    for dist in ("evo", "kornia", "torch", "numpy"):
+        try:
+            out[dist] = importlib.metadata.version(dist)
+        except importlib.metadata.PackageNotFoundError:
+            out[dist] = "not installed"
+    return out
+
+
+def _finite_or_none(value: Any) -> Any:
+    """JSON has no inf/nan: store them as null (e.g. PSNR of identical images)."""
+    if isinstance(value, dict):
+        return {k: _finite_or_none(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_finite_or_none(v) for v in value]
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
+def open_sequence(path: Path):  # -> egs_bench.datasets.sequence.Sequence
+    """Open the run's sequence (import deferred: evaluation of trajectory-only runs needs none)."""
+    from egs_bench.datasets.sequence import Sequence
+
+    return Sequence.open(path, check_images=False)
+
+
+def _ground_truth(run: RunFolder, seq) -> tuple[Trajectory, str]:
+    if run.groundtruth_path is not None:
+        return read_tum(run.groundtruth_path), str(run.groundtruth_path)
+    return Trajectory(np.asarray(seq.timestamps_s, dtype=np.float64),
+                      np.asarray(seq.poses, dtype=np.float64)), str(seq.path / "groundtruth.txt")
+
+
+def evaluate_ate(run: RunFolder, protocol: Protocol, seq=None) -> dict[str, Any]:
+    """ATE of the run under ``protocol``; returns the summary dict stored in ``metrics.json``."""
+    result = compute_run_ate(run, protocol, seq)
+    summary = result.summary()
+    summary["frames"] = protocol.ate_frames
+    summary["per_pose"] = {"timestamp_s": result.timestamps.tolist(),
+                           "error_m": result.errors.tolist()}
+    return summary
+
+
+def compute_run_ate(run: RunFolder, protocol: Protocol, seq=None):  # -> AteResult
+    """The :class:`~egs_bench.eval.ate.AteResult` of a run under ``protocol``."""
+    est = run.read_trajectory()
+    gt, gt_name = _ground_truth(run, seq)
+    if protocol.ate_frames == "keyframes":
+        keyframes = run.read_keyframes()
+        if keyframes is None:
+            raise InputError(run.path / "keyframes.txt",
+                             f"not found; protocol {protocol.name!r} evaluates ATE on keyframes")
+        if seq is not None and run.groundtruth_path is None:
+            if keyframes.max(initial=-1) >= len(gt):
+                raise InputError(run.path / "keyframes.txt",
+                                 f"keyframe {int(keyframes.max())} beyond the sequence's "
+                                 f"{len(gt)} frames")
+            gt = Trajectory(gt.timestamps[keyframes], gt.poses[keyframes])
+        else:
+            if keyframes.max(initial=-1) >= len(est):
+                raise InputError(run.path / "keyframes.txt",
+                                 f"keyframe {int(keyframes.max())} beyond the estimate's "
+                                 f"{len(est)} poses")
+            est = Trajectory(est.timestamps[keyframes], est.poses[keyframes])
+    return compute_ate(est, gt, align=protocol.ate_alignment, max_diff_s=protocol.ate_max_diff_s,
+                       est_name=run.trajectory_path, gt_name=gt_name)
+
+
+def rendering_frames(num_frames: int, protocol: Protocol,
+                     keyframes: np.ndarray | None) -> list[int]:
+    """Frame indices whose renders the protocol scores."""
+    frames = list(range(0, num_frames, protocol.render_stride))
+    if protocol.render_skip_keyframes:
+        if keyframes is None:
+            raise ValueError("keyframes needed")
+        kf = set(int(k) for k in keyframes)
+        frames = [f for f in frames if f not in kf]
+    return frames
+
+
+def evaluate_renders(run: RunFolder, protocol: Protocol, seq,
+                     progress: bool = False) -> dict[str, Any]:
+    """PSNR / SSIM / LPIPS of the run's renders under ``protocol`` (per frame and mean)."""
+    from tqdm import tqdm
+
+    from egs_bench.eval.lpips import load_lpips, lpips_distance
+
+    keyframes = run.read_keyframes()
+    if protocol.render_skip_keyframes and keyframes is None:
+        raise InputError(run.path / "keyframes.txt",
+                         f"not found; protocol {protocol.name!r} skips keyframes in rendering")
+    frames = rendering_frames(len(seq), protocol, keyframes)
+    missing = [f for f in frames if not run.render_path(f).is_file()]
+    if missing:
+        raise InputError(run.render_path(missing[0]),
+                         f"not found: protocol {protocol.name!r} scores {len(frames)} renders "
+                         f"(every {protocol.render_stride}th frame), {len(missing)} are missing")
+    model = load_lpips(protocol.lpips_net)
+    per_frame: dict[str, list] = {"frame": [], "psnr_db": [], "ssim": [], "lpips": []}
+    for i in tqdm(frames, desc=f"eval {run.method}/{run.sequence_name}", disable=not progress):
+        render = run.read_render(i)
+        if protocol.reference_images == "sharp":
+            ref = seq.sharp(i)
+            if ref is None:
+                raise InputError(seq.path, f"has no sharp ground truth for frame {i}; protocol "
+                                           f"{protocol.name!r} compares renders with it")
+        else:
+            ref = seq.rgb(i)
+        if render.shape != ref.shape:
+            raise InputError(run.render_path(i),
+                             f"render is {render.shape[1]}x{render.shape[0]}, the sequence's "
+                             f"frames are {ref.shape[1]}x{ref.shape[0]}")
+        p = psnr_masked(render, ref) if protocol.psnr == "masked" else psnr(render, ref)
+        per_frame["frame"].append(i)
+        per_frame["psnr_db"].append(p)
+        per_frame["ssim"].append(ssim(render, ref, variant=protocol.ssim))
+        per_frame["lpips"].append(lpips_distance(render, ref, net=protocol.lpips_net))
+    return {
+        "n_frames": len(frames),
+        "psnr_db": float(np.mean(per_frame["psnr_db"])) if frames else None,
+        "ssim": float(np.mean(per_frame["ssim"])) if frames else None,
+        "lpips": float(np.mean(per_frame["lpips"])) if frames else None,
+        "lpips_weights": {"net": protocol.lpips_net, "source": model.source,
+                          "sha256": model.sha256},
+        "per_frame": per_frame,
+    }
+
+
+def evaluate_run(run_dir: str | Path, protocol: str | Protocol = DEFAULT_PROTOCOL, *,
+                 write: bool = True, progress: bool = False) -> dict[str, Any]:
+    """Evaluate a finished run folder; optionally write ``metrics.json`` (atomically).
+
+    Args:
+        run_dir: the run folder.
+        protocol: protocol name or object (see :mod:`egs_bench.eval.protocols`).
+        write: write ``<run_dir>/metrics.json``.
+        progress: show a progress bar over the scored frames.
+
+    Returns:
+        The ``metrics.json`` content. ``rendering`` is ``None`` for runs without renders or
+        without a sequence (trajectory-only imports); ``speed`` is ``None`` without
+        ``timing.json``.
+
+    Raises:
+        InputError: the run is missing, not finished, failed, or any of its files is bad
+            (the message names the file).
+    """
+    proto = get_protocol(protocol) if isinstance(protocol, str) else protocol
+    run = RunFolder.open(run_dir)
+    status = run.read_status()
+    if status.state == "failed":
+        raise InputError(run.path, f"run failed ({status.reason}); nothing to evaluate")
+    if status.state != "done":
+        raise InputError(run.path, f"run is still {status.state!r}; evaluate it once it is done")
+    seq = open_sequence(run.sequence_path) if run.sequence_path is not None else None
+    notes: list[str] = []
+
+    ate = evaluate_ate(run, proto, seq)
+    rendering = None
+    if seq is None:
+        if run.render_indices():
+            notes.append("renders not scored: the run has no sequence folder with reference "
+                         "images")
+    elif not run.render_indices():
+        notes.append("no renders in the run folder: rendering metrics not computed")
+    else:
+        rendering = evaluate_renders(run, proto, seq, progress=progress)
+    timing = run.read_timing()
+    speed = None
+    if timing is not None:
+        speed = {"fps": timing.fps, "total_wall_s": timing.total_wall_s,
+                 "frames": int(len(timing.per_frame_s)), "render_fps": timing.render_fps}
+    metrics = {
+        "schema_version": METRICS_SCHEMA_VERSION,
+        "run": {"method": run.method, "sequence": run.sequence_name, "status": status.state},
+        "protocol": proto.to_dict(),
+        "tools": _tool_versions(),
+        "ate": ate,
+        "rendering": rendering,
+        "speed": speed,
+        "notes": notes,
+    }
+    metrics = _finite_or_none(metrics)
+    if write:
+        write_text_atomic(run.metrics_path, json.dumps(metrics, indent=1) + "\n")
+    return metrics
+
+
+def read_metrics(run_dir: str | Path) -> dict[str, Any]:
+    """Read a run's ``metrics.json``; raises :class:`InputError` if missing or malformed."""
+    path = Path(run_dir) / "metrics.json"
+    if not path.is_file():
+        raise InputError(path, "not found (run `egs-bench eval` first)")
+    try:
+        data = json.loads(path.read_text())
+    except json.JSONDecodeError as exc:
+        raise InputError(path, f"not valid JSON ({exc})") from None
+    if not isinstance(data, dict) or "protocol" not in data or "ate" not in data:
+        raise InputError(path, "not an egs-bench metrics file (no 'protocol'/'ate')")
+    return data
