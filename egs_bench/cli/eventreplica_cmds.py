@@ -1,3 +1,117 @@
-"""CLI commands of this area (registered on the shared app by import)."""
+"""CLI command ``make-eventreplica``: blurred E-RGB-D sequences from Replica-layout RGB-D data."""
 
-from egs_bench.cli.app import app  # noqa: F401
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+from rich.console import Console
+
+from egs_bench.cli.app import app
+
+
+@app.command("make-eventreplica")
+def make_eventreplica_cmd(
+    out: Path = typer.Option(
+        ..., "--out", "-o",
+        help="Output sequence folder (with --replica-root: a parent folder, one sub-folder per "
+             "scene).",
+    ),
+    input: Path | None = typer.Option(
+        None, "--input", "-i",
+        help="One scene in NICE-SLAM Replica layout: results/frameNNNNNN.jpg, "
+             "results/depthNNNNNN.png (scale 6553.5), traj.txt (16 numbers per line, c2w).",
+    ),
+    replica_root: Path | None = typer.Option(
+        None, "--replica-root",
+        help="Folder holding several Replica scenes (use with --scene; instead of --input).",
+    ),
+    scene: list[str] | None = typer.Option(
+        None, "--scene",
+        help="Scene name under --replica-root, e.g. office0; repeat for several scenes.",
+    ),
+    stride: int = typer.Option(
+        1, "--stride", min=1,
+        help="Use every S-th original frame; larger strides mean faster motion and more blur.",
+    ),
+    fps: float = typer.Option(30.0, "--fps", help="Frame rate of the strided frames (Hz)."),
+    exposure_ms: float = typer.Option(
+        20.0, "--exposure-ms",
+        help="Exposure of each output frame in ms, ending at the original frame (at most one "
+             "frame period).",
+    ),
+    upsample: str = typer.Option(
+        "auto", "--upsample",
+        help="Temporal sampling: 'auto' (adaptive: about 1 px motion and a bounded log-brightness "
+             "change between samples) or N (exactly N equal sub-steps between consecutive "
+             "exposure boundaries).",
+    ),
+    interpolator: str = typer.Option(
+        "depth", "--interpolator",
+        help="In-between frames: 'depth' (pose-aware depth-based view synthesis) or 'flow' "
+             "(OpenCV DIS optical flow; needs no depth).",
+    ),
+    width: int = typer.Option(448, "--width", help="Output width after the centre crop (px)."),
+    height: int = typer.Option(256, "--height", help="Output height after the centre crop (px)."),
+    resize: str = typer.Option(
+        "459x260", "--resize",
+        help="Resize to WxH before the centre crop, or 'none' to crop only.",
+    ),
+    first: int = typer.Option(0, "--first", min=0, help="First original frame to use."),
+    max_frames: int | None = typer.Option(
+        None, "--max-frames", min=2,
+        help="Use at most this many strided frames (the output has one frame fewer).",
+    ),
+    cam_params: Path | None = typer.Option(
+        None, "--cam-params",
+        help="cam_params.json with w, h, fx, fy, cx, cy, scale (Replica convention). Default: "
+             "<scene>/cam_params.json or its parent's, else 1200x680, f=600, c=(599.5, 339.5).",
+    ),
+    threshold: float = typer.Option(
+        0.25, "--threshold", help="Event contrast threshold (log units), both polarities."
+    ),
+    eps: float = typer.Option(1e-3, "--eps", help="Offset in log(luma + eps) for events."),
+    gain: float = typer.Option(
+        1.0, "--gain", help="Camera response gain before sRGB encoding (> 1 saturates)."
+    ),
+    seed: int = typer.Option(0, "--seed", help="Seed for event noise/threshold mismatch."),
+    overwrite: bool = typer.Option(False, "--overwrite", help="Replace existing outputs."),
+    progress: bool = typer.Option(True, "--progress/--no-progress", help="Show progress bars."),
+) -> None:
+    """Make EventReplica-style sequences: resize + crop, temporal upsampling, events, blur."""
+    from egs_bench.datasets.color import CameraResponse
+    from egs_bench.datasets.esim import EventSimConfig
+    from egs_bench.datasets.eventreplica import make_eventreplica, make_eventreplica_scenes
+    from egs_bench.errors import ConfigError
+
+    if (input is None) == (replica_root is None):
+        raise ConfigError("give exactly one of --input DIR or --replica-root ROOT --scene NAME")
+    if replica_root is not None and not scene:
+        raise ConfigError("--replica-root needs at least one --scene NAME")
+    if input is not None and scene:
+        raise ConfigError("--scene only works with --replica-root")
+    kwargs = dict(
+        stride=stride, fps=fps, exposure_ms=exposure_ms, upsample=upsample,
+        interpolator=interpolator, width=width, height=height, resize=_parse_size(resize),
+        first=first, max_frames=max_frames, cam_params=cam_params,
+        sim=EventSimConfig(pos_threshold=threshold, neg_threshold=threshold, eps=eps, seed=seed),
+        response=CameraResponse(gain=gain), progress=progress, overwrite=overwrite,
+    )
+    if input is not None:
+        outputs = [make_eventreplica(input, out, **kwargs)]
+    else:
+        outputs = make_eventreplica_scenes(replica_root, scene or [], out, **kwargs)
+    for path in outputs:
+        Console().print(f"wrote {path}")
+
+
+def _parse_size(text: str) -> tuple[int, int] | None:
+    from egs_bench.errors import ConfigError
+
+    if text.strip().lower() == "none":
+        return None
+    try:
+        w, h = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise ConfigError(f"--resize must look like 459x260 or 'none', not {text!r}") from None
+    return w, h
