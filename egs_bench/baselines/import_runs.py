@@ -1,0 +1,87 @@
+"""Import the outputs of external systems (ORB-SLAM2, MonoGS, Photo-SLAM, ...) as run folders.
+
+An import validates the estimate (TUM file: parseable, finite, sorted) and optional renders
+(``%06d.png`` named by frame index), then writes a finished :class:`RunFolder` that
+``egs-bench eval`` and ``egs-bench leaderboard`` treat like any other run.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+from egs_bench.errors import InputError
+from egs_bench.eval.run_folder import RunFolder
+from egs_bench.geometry import read_tum
+
+_RENDER = re.compile(r"^(\d+)\.png$")
+
+
+def import_tum_run(
+    estimate: str | Path,
+    out_dir: str | Path,
+    *,
+    method: str,
+    sequence_name: str,
+    sequence_path: str | Path | None = None,
+    groundtruth: str | Path | None = None,
+    renders_dir: str | Path | None = None,
+    overwrite: bool = False,
+) -> RunFolder:
+    """Create a finished run folder from an external TUM trajectory (and optional renders).
+
+    Args:
+        estimate: the external system's trajectory, TUM format (seconds, ``T_wc``).
+        out_dir: run folder to create.
+        method: method name for leaderboards.
+        sequence_name: sequence name for leaderboards.
+        sequence_path: canonical sequence folder (ground truth and reference images), or
+        groundtruth: a TUM ground-truth file (for sequences that exist only as trajectories).
+        renders_dir: folder of ``<frame index>.png`` renders to copy (any zero padding).
+        overwrite: replace an existing run folder.
+
+    Raises:
+        InputError: unreadable estimate / ground truth, or badly named renders.
+    """
+    if sequence_path is None and groundtruth is None:
+        raise InputError(out_dir, "an import needs a sequence folder or a ground-truth file")
+    trajectory = read_tum(estimate, min_poses=3)
+    if groundtruth is not None:
+        read_tum(groundtruth, min_poses=3)
+    renders: dict[int, Path] = {}
+    if renders_dir is not None:
+        renders_dir = Path(renders_dir)
+        if not renders_dir.is_dir():
+            raise InputError(renders_dir, "renders folder not found")
+        for f in sorted(renders_dir.iterdir()):
+            m = _RENDER.match(f.name)
+            if f.suffix.lower() == ".png" and not m:
+                raise InputError(f, "render names must be the frame index, e.g. 000005.png")
+            if m:
+                renders[int(m.group(1))] = f
+    run = RunFolder.create(out_dir, method=method, sequence_name=sequence_name,
+                           sequence_path=sequence_path, groundtruth=groundtruth,
+                           config={"imported_from": str(Path(estimate).resolve())},
+                           overwrite=overwrite)
+    with run.failure_guard():
+        run.write_trajectory(trajectory.timestamps, trajectory.poses)
+        for index, src in renders.items():
+            run.write_render(index, run_image(src))
+        run.log(f"imported {len(trajectory)} poses from {estimate}"
+                + (f" and {len(renders)} renders from {renders_dir}" if renders else ""))
+        run.mark_done()
+    return run
+
+
+def run_image(path: Path):  # -> np.ndarray uint8 [H, W, 3]
+    """Read an 8-bit RGB(A) PNG as uint8 [H, W, 3]."""
+    import imageio.v3 as iio
+    import numpy as np
+
+    try:
+        img = np.asarray(iio.imread(path))
+    except Exception as exc:  # noqa: BLE001 (any decoder failure is a bad input file)
+        raise InputError(path, f"cannot read image ({exc})") from None
+    if img.dtype != np.uint8 or img.ndim != 3 or img.shape[2] not in (3, 4):
+        raise InputError(path, f"expected an 8-bit RGB PNG, found {img.dtype} {img.shape}")
+    return np.ascontiguousarray(img[..., :3])
