@@ -35,7 +35,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from egs_bench.datasets.esim_kernels import NEVER_FIRED_US, count_crossings, emit_crossings
+from egs_bench.datasets.esim_kernels import (
+    NEVER_FIRED_US,
+    counting_sort_by_time,
+    crossing_offsets,
+    emit_crossings,
+)
 from egs_bench.datasets.events import Events
 from egs_bench.errors import ConfigError
 
@@ -203,46 +208,57 @@ class EventSimulator:
         t_old = self._t_us
         dt = t_new - t_old
 
-        counts = count_crossings(log_new, self._ref, self._pos, self._neg)
-        offsets = np.zeros_like(counts)
-        np.cumsum(counts[:-1], out=offsets[1:])
-        total = int(offsets[-1] + counts[-1])
+        offsets = crossing_offsets(log_new, self._ref, self._pos, self._neg)
+        total = int(offsets[-1])
         pix = np.empty(total, np.int64)
         dt_ev = np.empty(total, np.int64)
         pol = np.empty(total, np.int8)
         keep = np.empty(total, np.bool_)
         emit_crossings(
             self._last_log, log_new, self._ref, self._pos, self._neg, self._last_event_us,
-            counts, offsets, np.int64(t_old), np.int64(dt), np.int64(self.config.refractory_us),
+            offsets, np.int64(t_old), np.int64(dt), np.int64(self.config.refractory_us),
             pix, dt_ev, pol, keep,
         )
-        if self.config.refractory_us > 0:
-            pix, dt_ev, pol = pix[keep], dt_ev[keep], pol[keep]
         if self.config.noise_rate_hz > 0:
             n_pix, n_dt, n_pol = self._noise_events(dt)
             pix = np.concatenate([pix, n_pix])
             dt_ev = np.concatenate([dt_ev, n_dt])
             pol = np.concatenate([pol, n_pol])
-            # Noise breaks the pixel-major order of the crossings: sort by pixel first so the
-            # stable time sort below yields (t, pixel) order.
+            keep = np.concatenate([keep, np.ones(len(n_pix), np.bool_)])
+            # Crossings come out pixel by pixel; the noise events break that order, which the
+            # stable time sort below needs to produce (t, pixel) order.
             by_pixel = np.argsort(pix, kind="stable")
-            pix, dt_ev, pol = pix[by_pixel], dt_ev[by_pixel], pol[by_pixel]
-
-        # Crossings come out pixel by pixel, each pixel's in time order, so a stable sort by
-        # time gives (t, pixel) order. Small keys let numpy use its O(n) radix sort.
-        key = dt_ev.astype(np.uint16) if dt < 2**16 else dt_ev
-        order = np.argsort(key, kind="stable")
-        width = self.width
-        pix = pix[order]
-        events = Events(
-            (pix % width).astype(np.uint16),
-            (pix // width).astype(np.uint16),
-            dt_ev[order] + t_old,
-            pol[order],
-        )
+            pix, dt_ev, pol, keep = pix[by_pixel], dt_ev[by_pixel], pol[by_pixel], keep[by_pixel]
+        events = self._sorted_events(pix, dt_ev, pol, keep, t_old, dt)
         self._last_log = log_new
         self._t_us = t_new
         return events
+
+    def _sorted_events(
+        self, pix: np.ndarray, dt_ev: np.ndarray, pol: np.ndarray, keep: np.ndarray,
+        t_old: int, dt: int,
+    ) -> Events:
+        """Kept events in (t, pixel) order; input is in pixel order (see :meth:`step`)."""
+        n_kept = int(np.count_nonzero(keep))
+        if dt <= 4 * n_kept + 2**16:
+            # Counting sort over the interval's microseconds: O(N + dt), no comparisons.
+            x = np.empty(n_kept, np.uint16)
+            y = np.empty(n_kept, np.uint16)
+            t = np.empty(n_kept, np.int64)
+            p = np.empty(n_kept, np.int8)
+            counting_sort_by_time(pix, dt_ev, pol, keep, np.int64(dt), np.int64(t_old),
+                                  np.int64(self.width), x, y, t, p)
+            return Events(x, y, t, p)
+        # Long interval with few events: a stable comparison sort is cheaper.
+        pix, dt_ev, pol = pix[keep], dt_ev[keep], pol[keep]
+        order = np.argsort(dt_ev, kind="stable")
+        pix = pix[order]
+        return Events(
+            (pix % self.width).astype(np.uint16),
+            (pix // self.width).astype(np.uint16),
+            dt_ev[order] + t_old,
+            pol[order],
+        )
 
     def _noise_events(self, dt_us: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Shot-noise events of one interval: (pixel index, µs after t_prev in [1, dt], pol).

@@ -5,7 +5,8 @@ semantics we need (esim_py needs a C++ build and has no threshold map; esim_torc
 v2e places events on a global time grid instead of at each pixel's crossing time).
 
 All arrays are flat over pixels (index ``y * width + x``). Log-brightness is float64.
-The two passes share one formula for the number of crossings, so they always agree:
+The two passes (:func:`crossing_offsets`, :func:`emit_crossings`) share one formula for the
+number of crossings, so they always agree:
 
     n = floor((|L1 - ref| + CROSSING_TOLERANCE) / C),   C = pos or neg threshold of the pixel
 
@@ -27,10 +28,10 @@ NEVER_FIRED_US = np.int64(-(2**62))
 
 
 @njit(cache=True)
-def count_crossings(
+def crossing_offsets(
     log_new: np.ndarray, ref: np.ndarray, pos_thr: np.ndarray, neg_thr: np.ndarray
 ) -> np.ndarray:
-    """Number of threshold crossings per pixel between ``ref`` and ``log_new``.
+    """Where each pixel's crossings start in the output, from the number of crossings.
 
     Args:
         log_new: [P] float64, log-brightness at the new sample.
@@ -38,17 +39,21 @@ def count_crossings(
         pos_thr, neg_thr: [P] float64, per-pixel thresholds (> 0).
 
     Returns:
-        [P] int64 counts.
+        [P + 1] int64: pixel i has ``offsets[i + 1] - offsets[i]`` crossings; ``offsets[P]`` is
+        the total.
     """
     n_pix = log_new.shape[0]
-    counts = np.zeros(n_pix, dtype=np.int64)
+    offsets = np.empty(n_pix + 1, dtype=np.int64)
+    total = np.int64(0)
     for i in range(n_pix):
+        offsets[i] = total
         diff = log_new[i] - ref[i]
         if diff > 0.0:
-            counts[i] = np.int64(np.floor((diff + CROSSING_TOLERANCE) / pos_thr[i]))
+            total += np.int64(np.floor((diff + CROSSING_TOLERANCE) / pos_thr[i]))
         elif diff < 0.0:
-            counts[i] = np.int64(np.floor((-diff + CROSSING_TOLERANCE) / neg_thr[i]))
-    return counts
+            total += np.int64(np.floor((-diff + CROSSING_TOLERANCE) / neg_thr[i]))
+    offsets[n_pix] = total
+    return offsets
 
 
 @njit(cache=True)
@@ -59,7 +64,6 @@ def emit_crossings(
     pos_thr: np.ndarray,
     neg_thr: np.ndarray,
     last_event_us: np.ndarray,
-    counts: np.ndarray,
     offsets: np.ndarray,
     t_old_us: np.int64,
     dt_us: np.int64,
@@ -82,16 +86,17 @@ def emit_crossings(
         ref: [P] float64 references, updated in place.
         pos_thr, neg_thr: [P] float64 thresholds.
         last_event_us: [P] int64 time of each pixel's last kept event, updated in place.
-        counts: [P] int64 from :func:`count_crossings`; offsets: [P] int64 exclusive prefix sum.
+        offsets: [P + 1] int64 from :func:`crossing_offsets`.
         t_old_us, dt_us: interval start (µs) and length (µs, > 0).
         refractory_us: refractory period (µs, >= 0).
-        out_pix, out_dt, out_pol, out_keep: [sum(counts)] outputs: pixel index (int64), time
+        out_pix, out_dt, out_pol, out_keep: [offsets[P]] outputs: pixel index (int64), time
             after ``t_old_us`` in µs (int64, in [1, dt_us]), polarity (int8), kept flag (bool).
     """
     n_pix = log_new.shape[0]
     dt_f = np.float64(dt_us)
     for i in range(n_pix):
-        n = counts[i]
+        j = offsets[i]
+        n = offsets[i + 1] - j
         if n == 0:
             continue
         l0 = log_old[i]
@@ -104,7 +109,6 @@ def emit_crossings(
             pol = np.int8(-1)
         base = ref[i]
         last = last_event_us[i]
-        j = offsets[i]
         for k in range(1, n + 1):
             level = base + k * step
             if span != 0.0:
@@ -125,3 +129,46 @@ def emit_crossings(
             j += 1
         ref[i] = base + n * step
         last_event_us[i] = last
+
+
+@njit(cache=True)
+def counting_sort_by_time(
+    pix: np.ndarray,
+    dt_ev: np.ndarray,
+    pol: np.ndarray,
+    keep: np.ndarray,
+    dt_us: np.int64,
+    t_old_us: np.int64,
+    width: np.int64,
+    out_x: np.ndarray,
+    out_y: np.ndarray,
+    out_t: np.ndarray,
+    out_p: np.ndarray,
+) -> None:
+    """Stable counting sort of the kept events by time, writing the final event arrays.
+
+    O(N + dt_us). Input must already be in pixel order within equal times (as
+    :func:`emit_crossings` writes it), so the output is in (t, pixel) order.
+
+    Args:
+        pix, dt_ev, pol, keep: [N] as written by :func:`emit_crossings`.
+        dt_us: interval length (µs); every ``dt_ev`` lies in [1, dt_us].
+        t_old_us: interval start (µs), added to ``dt_ev``.
+        width: image width, to split the pixel index into (x, y).
+        out_x, out_y, out_t, out_p: [number of kept events] outputs (uint16, uint16, int64, int8).
+    """
+    start = np.zeros(dt_us + 2, dtype=np.int64)
+    for j in range(pix.shape[0]):
+        if keep[j]:
+            start[dt_ev[j] + 1] += 1
+    for d in range(1, dt_us + 2):
+        start[d] += start[d - 1]
+    for j in range(pix.shape[0]):
+        if keep[j]:
+            d = dt_ev[j]
+            k = start[d]
+            start[d] = k + 1
+            out_x[k] = pix[j] % width
+            out_y[k] = pix[j] // width
+            out_t[k] = t_old_us + d
+            out_p[k] = pol[j]

@@ -188,7 +188,9 @@ def test_matches_independent_reference_loop_with_mismatch_and_refractory():
     n, h, w = 12, 6, 7
     video = _smooth_video(n, h, w, seed=5, amplitude=2.0)
     rng = np.random.default_rng(6)
-    times = np.cumsum(rng.integers(50, 400, size=n))
+    gaps = rng.integers(50, 400, size=n)
+    gaps[7] = 3_000_000  # a long interval takes the comparison-sort path
+    times = np.cumsum(gaps)
     config = EventSimConfig(pos_threshold=0.12, neg_threshold=0.18, sigma=0.03,
                             refractory_us=60, seed=7)
     sim = EventSimulator(config, h, w)
