@@ -1,0 +1,78 @@
+"""Resolve a sequence name or path to a sequence folder; built-in names are generated on demand.
+
+``--seq`` accepts a path to a sequence folder, or a name looked up under the data root
+(``$EGS_BENCH_DATA``, default ``./data``). Names of built-in synthetic sequences that are not
+there yet are generated into the data root on first use (deterministic: same name, same data).
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+from egs_bench.errors import InputError
+
+
+@dataclass(frozen=True)
+class BuiltinSequence:
+    """Settings of a built-in synthetic sequence (arguments of ``make_synthetic``)."""
+
+    scene: str
+    description: str
+    frames: int = 100
+    width: int = 448
+    height: int = 256
+    fps: float = 30.0
+    exposure_ms: float = 20.0
+    speed: float = 1.0
+    seed: int = 0
+
+
+BUILTIN_SEQUENCES: dict[str, BuiltinSequence] = {
+    "office1": BuiltinSequence("office", "office, hand-held motion, strong blur", speed=1.5,
+                               seed=1),
+    "office2": BuiltinSequence("office", "office, faster motion, very strong blur", speed=2.5,
+                               seed=2),
+    "livingroom1": BuiltinSequence("livingroom", "living room, strong blur", speed=1.5, seed=3),
+    "studio1": BuiltinSequence("studio", "studio with bright lamps, strong blur", speed=1.5,
+                               seed=4),
+    "corridor1": BuiltinSequence("corridor", "corridor, strong blur", speed=1.5, seed=5),
+    "office1-sharp": BuiltinSequence("office", "office1's motion with a 1 ms exposure (no blur)",
+                                     speed=1.5, seed=1, exposure_ms=1.0),
+    "demo": BuiltinSequence("office", "short low-resolution blurred sequence for `make demo`",
+                            frames=40, width=224, height=128, speed=1.5, seed=7),
+}
+
+
+def data_root() -> Path:
+    """The folder named sequences live in: ``$EGS_BENCH_DATA`` or ``./data``."""
+    return Path(os.environ.get("EGS_BENCH_DATA", "data"))
+
+
+def resolve_sequence(name_or_path: str | Path, root: Path | None = None, generate: bool = True,
+                     progress: bool = True) -> Path:
+    """Return the sequence folder for a path or a name (generating built-in names on demand).
+
+    Raises:
+        InputError: neither an existing folder nor a known name.
+    """
+    candidate = Path(name_or_path)
+    if candidate.is_dir():
+        return candidate
+    root = root or data_root()
+    named = root / str(name_or_path)
+    if named.is_dir():
+        return named
+    spec = BUILTIN_SEQUENCES.get(str(name_or_path))
+    if spec is None:
+        known = ", ".join(BUILTIN_SEQUENCES)
+        raise InputError(candidate, f"no such sequence folder, and not a name under {root} "
+                                    f"or a built-in sequence ({known})")
+    if not generate:
+        raise InputError(named, "built-in sequence not generated yet")
+    from egs_bench.datasets.synthetic import make_synthetic
+
+    settings = asdict(spec)
+    settings.pop("description")
+    return make_synthetic(out=named, progress=progress, **settings)
