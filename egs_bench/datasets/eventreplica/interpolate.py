@@ -79,7 +79,8 @@ class DepthWarpInterpolator:
     Attributes:
         rel_depth_tol: relative depth tolerance for "same surface" (z-buffer and blending).
         min_coverage: minimum accumulated splat weight for a warped pixel to count as covered.
-        inpaint_radius: OpenCV Telea inpainting radius (pixels) for holes.
+        inpaint_radius: OpenCV inpainting radius (pixels) for holes (Navier-Stokes method; the
+            Telea method returns garbage on float32 images in OpenCV 5.0).
     """
 
     rel_depth_tol: float = 0.03
@@ -145,12 +146,12 @@ def _world_cloud(frame: KeyFrame, intr: Intrinsics) -> tuple[np.ndarray, np.ndar
 
 
 def _inpaint(rgb: np.ndarray, holes: np.ndarray, radius: float) -> np.ndarray:
-    """Fill ``holes`` [H, W] bool of a float32 image [H, W, 3] with OpenCV's Telea inpainting."""
+    """Fill ``holes`` [H, W] bool of a float32 image [H, W, 3] by OpenCV inpainting."""
     mask = holes.astype(np.uint8)
     out = np.empty_like(rgb)
     for c in range(rgb.shape[2]):
         out[..., c] = cv2.inpaint(np.ascontiguousarray(rgb[..., c]), mask, radius,
-                                  cv2.INPAINT_TELEA)
+                                  cv2.INPAINT_NS)
     return np.maximum(out, 0.0)
 
 
