@@ -210,70 +210,74 @@ class EventSimulator:
 
         offsets = crossing_offsets(log_new, self._ref, self._pos, self._neg)
         total = int(offsets[-1])
-        pix = np.empty(total, np.int64)
+        x = np.empty(total, np.uint16)
+        y = np.empty(total, np.uint16)
         dt_ev = np.empty(total, np.int64)
         pol = np.empty(total, np.int8)
         keep = np.empty(total, np.bool_)
         emit_crossings(
             self._last_log, log_new, self._ref, self._pos, self._neg, self._last_event_us,
             offsets, np.int64(t_old), np.int64(dt), np.int64(self.config.refractory_us),
-            pix, dt_ev, pol, keep,
+            np.int64(self.width), x, y, dt_ev, pol, keep,
         )
-        if self.config.noise_rate_hz > 0:
-            n_pix, n_dt, n_pol = self._noise_events(dt)
-            pix = np.concatenate([pix, n_pix])
-            dt_ev = np.concatenate([dt_ev, n_dt])
-            pol = np.concatenate([pol, n_pol])
-            keep = np.concatenate([keep, np.ones(len(n_pix), np.bool_)])
-            # Crossings come out pixel by pixel; the noise events break that order, which the
-            # stable time sort below needs to produce (t, pixel) order.
-            by_pixel = np.argsort(pix, kind="stable")
-            pix, dt_ev, pol, keep = pix[by_pixel], dt_ev[by_pixel], pol[by_pixel], keep[by_pixel]
-        events = self._sorted_events(pix, dt_ev, pol, keep, t_old, dt)
+        noise = self._noise_events(dt)
+        events = self._sorted_events((x, y, dt_ev, pol, keep), noise, t_old, dt)
         self._last_log = log_new
         self._t_us = t_new
         return events
 
+    @staticmethod
     def _sorted_events(
-        self, pix: np.ndarray, dt_ev: np.ndarray, pol: np.ndarray, keep: np.ndarray,
-        t_old: int, dt: int,
+        signal: tuple[np.ndarray, ...], noise: tuple[np.ndarray, ...], t_old: int, dt: int
     ) -> Events:
-        """Kept events in (t, pixel) order; input is in pixel order (see :meth:`step`)."""
-        n_kept = int(np.count_nonzero(keep))
-        if dt <= 4 * n_kept + 2**16:
-            # Counting sort over the interval's microseconds: O(N + dt), no comparisons.
-            x = np.empty(n_kept, np.uint16)
-            y = np.empty(n_kept, np.uint16)
-            t = np.empty(n_kept, np.int64)
-            p = np.empty(n_kept, np.int8)
-            counting_sort_by_time(pix, dt_ev, pol, keep, np.int64(dt), np.int64(t_old),
-                                  np.int64(self.width), x, y, t, p)
-            return Events(x, y, t, p)
-        # Long interval with few events: a stable comparison sort is cheaper.
-        pix, dt_ev, pol = pix[keep], dt_ev[keep], pol[keep]
-        order = np.argsort(dt_ev, kind="stable")
-        pix = pix[order]
-        return Events(
-            (pix % self.width).astype(np.uint16),
-            (pix // self.width).astype(np.uint16),
-            dt_ev[order] + t_old,
-            pol[order],
-        )
+        """Kept crossings and noise events in (t, y, x) order (crossing first on ties).
 
-    def _noise_events(self, dt_us: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Shot-noise events of one interval: (pixel index, µs after t_prev in [1, dt], pol).
+        ``signal`` = (x, y, dt, pol, keep) as written by :func:`emit_crossings` (pixel order);
+        ``noise`` = (x, y, dt, pol) in pixel order. Times are offsets from ``t_old`` in µs.
+        """
+        sig_x, sig_y, sig_dt, sig_pol, sig_keep = signal
+        n_out = int(np.count_nonzero(sig_keep)) + len(noise[0])
+        if dt <= 4 * n_out + 2**16:
+            # Counting sort over the interval's microseconds: O(N + dt), no comparisons.
+            out = Events(np.empty(n_out, np.uint16), np.empty(n_out, np.uint16),
+                         np.empty(n_out, np.int64), np.empty(n_out, np.int8))
+            counting_sort_by_time(*signal, *noise, np.int64(dt), np.int64(t_old),
+                                  out.x, out.y, out.t, out.p)
+            return out
+        # Long interval with few events: a comparison sort is cheaper.
+        x = np.concatenate([sig_x[sig_keep], noise[0]])
+        y = np.concatenate([sig_y[sig_keep], noise[1]])
+        dts = np.concatenate([sig_dt[sig_keep], noise[2]])
+        pol = np.concatenate([sig_pol[sig_keep], noise[3]])
+        # lexsort is stable and crossings come first: they precede noise on equal (t, y, x).
+        order = np.lexsort((x, y, dts))  # last key is the primary one
+        return Events(x[order], y[order], dts[order] + t_old, pol[order])
+
+    def _noise_events(self, dt_us: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Shot-noise events of one interval, in pixel order (empty when the rate is 0).
 
         One Poisson count for the whole sensor with uniform pixel choice is the same process as
         independent per-pixel Poisson processes of rate ``noise_rate_hz`` (Poisson thinning).
+
+        Returns:
+            x, y (uint16), time after the interval start in µs (int64, in [1, dt_us]),
+            polarity (int8), each [M].
         """
-        rng = self._noise_rng
         n_pix = self.height * self.width
-        expected = self.config.noise_rate_hz * n_pix * dt_us * 1e-6
-        n = int(rng.poisson(expected))
+        n = 0
+        if self.config.noise_rate_hz > 0:
+            rng = self._noise_rng
+            n = int(rng.poisson(self.config.noise_rate_hz * n_pix * dt_us * 1e-6))
+        if n == 0:
+            return (np.zeros(0, np.uint16), np.zeros(0, np.uint16), np.zeros(0, np.int64),
+                    np.zeros(0, np.int8))
         pix = rng.integers(0, n_pix, size=n, dtype=np.int64)
         dt_ev = rng.integers(1, dt_us + 1, size=n, dtype=np.int64)
         pol = np.where(rng.random(n) < 0.5, 1, -1).astype(np.int8)
-        return pix, dt_ev, pol
+        order = np.argsort(pix, kind="stable")
+        pix = pix[order]
+        return ((pix % self.width).astype(np.uint16), (pix // self.width).astype(np.uint16),
+                dt_ev[order], pol[order])
 
 
 def simulate(

@@ -68,7 +68,9 @@ def emit_crossings(
     t_old_us: np.int64,
     dt_us: np.int64,
     refractory_us: np.int64,
-    out_pix: np.ndarray,
+    width: np.int64,
+    out_x: np.ndarray,
+    out_y: np.ndarray,
     out_dt: np.ndarray,
     out_pol: np.ndarray,
     out_keep: np.ndarray,
@@ -79,7 +81,8 @@ def emit_crossings(
     is found by linear interpolation of log-brightness between the two samples and rounded to
     the nearest microsecond, then clamped into ``(t_old, t_old + dt]``. An event is kept unless
     it follows the pixel's previous *kept* event by less than ``refractory_us``; the reference
-    moves past every crossing, kept or not (ESIM semantics).
+    moves past every crossing, kept or not (ESIM semantics). Output is pixel by pixel, each
+    pixel's crossings in time order.
 
     Args:
         log_old, log_new: [P] float64 log-brightness at the previous / new sample.
@@ -89,8 +92,9 @@ def emit_crossings(
         offsets: [P + 1] int64 from :func:`crossing_offsets`.
         t_old_us, dt_us: interval start (µs) and length (µs, > 0).
         refractory_us: refractory period (µs, >= 0).
-        out_pix, out_dt, out_pol, out_keep: [offsets[P]] outputs: pixel index (int64), time
-            after ``t_old_us`` in µs (int64, in [1, dt_us]), polarity (int8), kept flag (bool).
+        width: image width (pixel i is at x = i % width, y = i // width).
+        out_x, out_y, out_dt, out_pol, out_keep: [offsets[P]] outputs: column and row (uint16),
+            time after ``t_old_us`` in µs (int64, in [1, dt_us]), polarity (int8), kept (bool).
     """
     n_pix = log_new.shape[0]
     dt_f = np.float64(dt_us)
@@ -99,6 +103,8 @@ def emit_crossings(
         n = offsets[i + 1] - j
         if n == 0:
             continue
+        row = i // width
+        col = i - row * width
         l0 = log_old[i]
         span = log_new[i] - l0
         if log_new[i] > ref[i]:
@@ -122,7 +128,8 @@ def emit_crossings(
             keep = t_event - last >= refractory_us
             if keep:
                 last = t_event
-            out_pix[j] = i
+            out_x[j] = col
+            out_y[j] = row
             out_dt[j] = dt_event
             out_pol[j] = pol
             out_keep[j] = keep
@@ -133,42 +140,68 @@ def emit_crossings(
 
 @njit(cache=True)
 def counting_sort_by_time(
-    pix: np.ndarray,
-    dt_ev: np.ndarray,
-    pol: np.ndarray,
-    keep: np.ndarray,
+    sig_x: np.ndarray,
+    sig_y: np.ndarray,
+    sig_dt: np.ndarray,
+    sig_pol: np.ndarray,
+    sig_keep: np.ndarray,
+    noise_x: np.ndarray,
+    noise_y: np.ndarray,
+    noise_dt: np.ndarray,
+    noise_pol: np.ndarray,
     dt_us: np.int64,
     t_old_us: np.int64,
-    width: np.int64,
     out_x: np.ndarray,
     out_y: np.ndarray,
     out_t: np.ndarray,
     out_p: np.ndarray,
 ) -> None:
-    """Stable counting sort of the kept events by time, writing the final event arrays.
+    """Merge kept crossings and noise events into (t, y, x) order with a stable counting sort.
 
-    O(N + dt_us). Input must already be in pixel order within equal times (as
-    :func:`emit_crossings` writes it), so the output is in (t, pixel) order.
+    O(N + dt_us). Both inputs must be in pixel (y, x) order, as :func:`emit_crossings` writes
+    the crossings; the two are merged by pixel on the fly (crossing first on equal pixels) and
+    then bucketed by time, which keeps pixel order within each microsecond.
 
     Args:
-        pix, dt_ev, pol, keep: [N] as written by :func:`emit_crossings`.
-        dt_us: interval length (µs); every ``dt_ev`` lies in [1, dt_us].
-        t_old_us: interval start (µs), added to ``dt_ev``.
-        width: image width, to split the pixel index into (x, y).
-        out_x, out_y, out_t, out_p: [number of kept events] outputs (uint16, uint16, int64, int8).
+        sig_x, sig_y, sig_dt, sig_pol, sig_keep: [N] crossings from :func:`emit_crossings`.
+        noise_x, noise_y, noise_dt, noise_pol: [M] noise events (uint16, uint16, int64, int8).
+        dt_us: interval length (µs); every time offset lies in [1, dt_us].
+        t_old_us: interval start (µs), added to the offsets.
+        out_x, out_y, out_t, out_p: [kept N + M] outputs (uint16, uint16, int64, int8).
     """
     start = np.zeros(dt_us + 2, dtype=np.int64)
-    for j in range(pix.shape[0]):
-        if keep[j]:
-            start[dt_ev[j] + 1] += 1
+    for j in range(sig_dt.shape[0]):
+        if sig_keep[j]:
+            start[sig_dt[j] + 1] += 1
+    for j in range(noise_dt.shape[0]):
+        start[noise_dt[j] + 1] += 1
     for d in range(1, dt_us + 2):
         start[d] += start[d - 1]
-    for j in range(pix.shape[0]):
-        if keep[j]:
-            d = dt_ev[j]
+    n_sig = sig_dt.shape[0]
+    n_noise = noise_dt.shape[0]
+    a = 0
+    b = 0
+    while a < n_sig or b < n_noise:
+        take_signal = b >= n_noise or (
+            a < n_sig
+            and (sig_y[a] < noise_y[b] or (sig_y[a] == noise_y[b] and sig_x[a] <= noise_x[b]))
+        )
+        if take_signal:
+            if sig_keep[a]:
+                d = sig_dt[a]
+                k = start[d]
+                start[d] = k + 1
+                out_x[k] = sig_x[a]
+                out_y[k] = sig_y[a]
+                out_t[k] = t_old_us + d
+                out_p[k] = sig_pol[a]
+            a += 1
+        else:
+            d = noise_dt[b]
             k = start[d]
             start[d] = k + 1
-            out_x[k] = pix[j] % width
-            out_y[k] = pix[j] // width
+            out_x[k] = noise_x[b]
+            out_y[k] = noise_y[b]
             out_t[k] = t_old_us + d
-            out_p[k] = pol[j]
+            out_p[k] = noise_pol[b]
+            b += 1

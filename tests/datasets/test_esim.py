@@ -384,3 +384,30 @@ def test_simulator_does_not_alias_caller_arrays():
     sim.reset(image, 0)
     image += 10.0  # caller reuses its buffer
     assert len(sim.step(np.zeros((2, 2)), 10)) == 0
+
+
+@pytest.mark.parametrize("dt", [1000, 10**6])  # counting sort / comparison sort paths
+def test_event_ordering_merges_crossings_and_noise_by_time_then_pixel(dt):
+    rng = np.random.default_rng(13)
+    h, w = 5, 6
+
+    def pixel_ordered(n, with_keep):
+        pix = np.sort(rng.integers(0, h * w, n))
+        cols = [(pix % w).astype(np.uint16), (pix // w).astype(np.uint16),
+                rng.integers(1, 40, n).astype(np.int64),
+                np.where(rng.random(n) < 0.5, 1, -1).astype(np.int8)]
+        if with_keep:
+            cols.append(rng.random(n) < 0.8)
+        return tuple(cols)
+
+    signal, noise = pixel_ordered(300, True), pixel_ordered(100, False)
+    ev = EventSimulator._sorted_events(signal, noise, 5_000, dt)
+    rows = [(5_000 + d, y, x, 0, i, p)
+            for i, (x, y, d, p, k) in enumerate(zip(*signal, strict=True)) if k]
+    rows += [(5_000 + d, y, x, 1, i, p)
+             for i, (x, y, d, p) in enumerate(zip(*noise, strict=True))]
+    rows.sort()  # (t, y, x, crossing before noise, input order)
+    assert ev.t.tolist() == [r[0] for r in rows]
+    assert ev.y.tolist() == [r[1] for r in rows]
+    assert ev.x.tolist() == [r[2] for r in rows]
+    assert ev.p.tolist() == [r[5] for r in rows]
