@@ -176,6 +176,12 @@ class EventSimulator:
             raise ValueError("log image contains NaN or infinite values")
         return flat
 
+    @staticmethod
+    def _as_time(t_us: int) -> int:
+        if isinstance(t_us, bool) or int(t_us) != t_us:
+            raise ValueError(f"sample time must be an integer number of microseconds, got {t_us}")
+        return int(t_us)
+
     def reset(self, log_image: np.ndarray, t_us: int) -> None:
         """Start a new stream at the first sample (no events).
 
@@ -186,7 +192,7 @@ class EventSimulator:
         self._last_log = self._flat_log(log_image)
         self._ref = self._last_log.copy()
         self._last_event_us.fill(NEVER_FIRED_US)
-        self._t_us = int(t_us)
+        self._t_us = self._as_time(t_us)
         self._noise_rng = np.random.default_rng(self._noise_seed)
 
     def step(self, log_image: np.ndarray, t_us: int) -> Events:
@@ -201,7 +207,7 @@ class EventSimulator:
         """
         if self._t_us is None or self._ref is None or self._last_log is None:
             raise RuntimeError("EventSimulator.step called before reset")
-        t_new = int(t_us)
+        t_new = self._as_time(t_us)
         if t_new <= self._t_us:
             raise ValueError(f"sample times must increase: got {t_new} us after {self._t_us} us")
         log_new = self._flat_log(log_image)

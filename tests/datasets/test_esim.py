@@ -372,6 +372,8 @@ def test_invalid_input_is_rejected():
         sim.step(np.zeros((4, 5)), 50)
     with pytest.raises(ValueError):
         sim.step(np.full((4, 5), np.nan), 200)
+    with pytest.raises(ValueError, match="integer"):
+        sim.step(np.zeros((4, 5)), 200.5)
     with pytest.raises(ValueError):
         EventSimulator(EventSimConfig(), 0, 5)
     with pytest.raises(ValueError):
