@@ -11,6 +11,7 @@ import re
 from pathlib import Path
 
 from egs_bench.errors import InputError
+from egs_bench.eval.image_io import read_ldr_image
 from egs_bench.eval.run_folder import RunFolder
 from egs_bench.geometry import read_tum
 
@@ -66,22 +67,8 @@ def import_tum_run(
     with run.failure_guard():
         run.write_trajectory(trajectory.timestamps, trajectory.poses)
         for index, src in renders.items():
-            run.write_render(index, run_image(src))
+            run.write_render(index, read_ldr_image(src))
         run.log(f"imported {len(trajectory)} poses from {estimate}"
                 + (f" and {len(renders)} renders from {renders_dir}" if renders else ""))
         run.mark_done()
     return run
-
-
-def run_image(path: Path):  # -> np.ndarray uint8 [H, W, 3]
-    """Read an 8-bit RGB(A) PNG as uint8 [H, W, 3]."""
-    import imageio.v3 as iio
-    import numpy as np
-
-    try:
-        img = np.asarray(iio.imread(path))
-    except Exception as exc:  # noqa: BLE001 (any decoder failure is a bad input file)
-        raise InputError(path, f"cannot read image ({exc})") from None
-    if img.dtype != np.uint8 or img.ndim != 3 or img.shape[2] not in (3, 4):
-        raise InputError(path, f"expected an 8-bit RGB PNG, found {img.dtype} {img.shape}")
-    return np.ascontiguousarray(img[..., :3])

