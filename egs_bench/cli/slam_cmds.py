@@ -1,3 +1,56 @@
-"""CLI commands of this area (registered on the shared app by import)."""
+"""CLI commands of the SLAM area: ``run`` and ``list-methods`` (thin wrappers)."""
 
-from egs_bench.cli.app import app  # noqa: F401
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+from egs_bench.cli.app import app
+
+
+@app.command("run")
+def run_cmd(
+    method: str = typer.Option(..., "--method", "-m",
+                               help="Method name (see `egs-bench list-methods`) or an import "
+                                    "path module:attribute."),
+    seq: str = typer.Option(..., "--seq", "-s",
+                            help="Sequence folder, or a name under $EGS_BENCH_DATA "
+                                 "(default ./data)."),
+    preset: str = typer.Option("paper", "--preset",
+                               help="Configuration preset: paper (full method, GPU-sized) or "
+                                    "cpu (same method, reduced resolution/iterations)."),
+    out: Path | None = typer.Option(None, "--out", "-o",
+                                    help="Run folder to write (default runs/<method>/<seq>)."),
+    device: str = typer.Option("cpu", "--device", help="cpu or cuda."),
+    seed: int = typer.Option(0, "--seed", help="Random seed (CPU runs are deterministic)."),
+    max_frames: int | None = typer.Option(None, "--max-frames",
+                                          help="Process only the first N frames."),
+    evaluate: bool = typer.Option(False, "--eval",
+                                  help="Evaluate the run afterwards (writes metrics.json)."),
+    quiet: bool = typer.Option(False, "--quiet", help="No progress bar."),
+) -> None:
+    """Run a SLAM method on a sequence and write its run folder."""
+    from egs_bench.slam.methods import get_method
+    from egs_bench.slam.runner import resolve_sequence
+
+    m = get_method(method)
+    sequence = resolve_sequence(seq)
+    out_dir = out or Path("runs") / m.name.replace(":", "_") / sequence.name
+    run = m.run(sequence, out_dir, preset=preset, device=device, seed=seed,
+                max_frames=max_frames, progress=not quiet)
+    typer.echo(f"run folder: {run.path}")
+    if evaluate:
+        from egs_bench.eval.evaluate import evaluate_run
+
+        evaluate_run(run.path)
+        typer.echo(f"metrics: {run.metrics_path}")
+
+
+@app.command("list-methods")
+def list_methods_cmd() -> None:
+    """List the registered SLAM methods (built-in, plugins, registered)."""
+    from egs_bench.slam.methods import available_methods
+
+    for name, desc in available_methods().items():
+        typer.echo(f"{name:24s} {desc}")

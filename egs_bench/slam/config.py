@@ -1,0 +1,156 @@
+"""Configuration of the SLAM system: one dataclass, two presets (``paper`` and ``cpu``).
+
+Methods (``egs``, ablations, ``monogs``) are overrides of these fields, not code forks; see
+:mod:`egs_bench.slam.methods`. Every field is plain data so the resolved configuration is
+stored verbatim in the run folder's ``config.yaml``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from typing import Any
+
+from egs_bench.errors import ConfigError
+
+
+@dataclass
+class SlamConfig:
+    """All knobs of EGS-SLAM / the MonoGS-style baseline.
+
+    Values marked (paper) are from EGS-SLAM §V.B; (MonoGS) from MonoGS's Replica RGB-D
+    single-process configuration (research note monogs_gsplat.md §1).
+    """
+
+    # ---- method ------------------------------------------------------------------------
+    n_segments: int = 4                 # K: exposure segments; K+1 sub-poses (1 = no blur model)
+    event_tracking: bool = True         # event loss in tracking
+    event_mapping: bool = True          # event loss in mapping
+    no_event_loss: bool = True          # L_NE on silent pixels
+    crf: str = "learnable"              # learnable | srgb | identity
+    crf_nodes: int = 16
+    crf_alpha: float = 0.01             # (paper)
+    exposure_compensation: bool = True  # per-frame exp(a) I + b (MonoGS)
+    theta: float | None = None          # event threshold; None = the sequence's pos/neg values
+    lambda_ne: float = 0.4              # (paper)
+    lambda_e: float = 0.05              # (paper, synthetic; real data 0.15)
+    lambda_id: float = 0.95             # (paper, synthetic; real data 0.85)
+    lambda_i: float = 0.9               # (paper)
+    lambda_d: float = 0.1               # (paper)
+    lambda_iso: float = 10.0            # (paper, MonoGS)
+    # ---- tracking ----------------------------------------------------------------------
+    tracking_iters: int = 100           # (MonoGS)
+    lr_rot: float = 0.003               # (MonoGS)
+    lr_trans: float = 0.001             # (MonoGS)
+    lr_exposure: float = 0.01           # (MonoGS)
+    converged_threshold: float = 1e-4   # (MonoGS) |twist| after a step
+    motion_model: str = "constant-position"  # or constant-velocity
+    use_edge_mask: bool = True          # (MonoGS) tracking photometric term on edges only
+    edge_threshold: float = 4.0         # (MonoGS, Replica)
+    edge_blocks: int | None = 32        # (MonoGS, Replica)
+    rgb_boundary_threshold: float = 0.01  # (MonoGS)
+    # ---- keyframes / mapping -------------------------------------------------------------
+    kf_interval: int = 4                # (MonoGS)
+    kf_overlap: float = 0.95
+    kf_min_translation: float = 0.02
+    kf_translation: float = 0.04
+    kf_cutoff: float = 0.4
+    window_size: int = 10               # (paper)
+    pose_window: int = 5                # (paper) latest keyframes whose trajectories are refined
+    n_random_kfs: int = 2               # (paper, MonoGS)
+    views_per_iter: int | None = None   # None = whole mapping set every iteration (MonoGS)
+    init_iters: int = 1050              # (MonoGS) mapping iterations on frame 0
+    mapping_iters: int = 150            # (MonoGS single process) per new keyframe
+    prune_every: int = 150              # (MonoGS) opacity pruning period (mapping iterations)
+    prune_offset: int = 50
+    prune_opacity: float = 0.7          # (MonoGS gaussian_th)
+    init_prune_opacity: float = 0.005   # (MonoGS init_gaussian_th)
+    lr_means: float = 0.00016 * 6       # (MonoGS, times its spatial_lr_scale 6)
+    lr_colors: float = 0.0025 * 0.28209479  # (MonoGS f_dc lr expressed on colours)
+    lr_opacity: float = 0.05
+    lr_scales: float = 0.001 * 6
+    lr_quats: float = 0.001
+    lr_crf: float = 0.005
+    kf_pose_lr_scale: float = 0.5       # (MonoGS) keyframe pose lr = 0.5 x tracking lr
+    # ---- map ---------------------------------------------------------------------------
+    pcd_downsample_init: int = 8        # keep 1 of this many valid pixels at frame 0
+    pcd_downsample: int = 16            # ... at later keyframes
+    point_size: float = 0.5             # scale^2 = point_size x mean sq. 3-NN distance
+    near_plane: float = 0.2             # (MonoGS)
+    # ---- runtime -----------------------------------------------------------------------
+    resolution_scale: float = 1.0       # internal processing resolution factor
+    backend: str = "auto"
+    max_translation_jump: float = 0.5   # m between consecutive frames, else divergence
+    max_rotation_jump: float = 0.6      # rad between consecutive frames, else divergence
+    divergence_loss_factor: float = 20.0  # final loss > factor x running median -> divergence
+    extra: dict[str, Any] = field(default_factory=dict)  # free-form, for user methods
+
+    def validate(self) -> SlamConfig:
+        """Raise :class:`ConfigError` on inconsistent values; returns self."""
+        if self.n_segments < 1:
+            raise ConfigError(f"n_segments must be >= 1, got {self.n_segments}")
+        if self.crf not in ("learnable", "srgb", "identity"):
+            raise ConfigError(f"crf must be learnable, srgb or identity, got {self.crf!r}")
+        if self.motion_model not in ("constant-position", "constant-velocity"):
+            raise ConfigError(f"unknown motion_model {self.motion_model!r}")
+        if not 0 < self.resolution_scale <= 1:
+            raise ConfigError("resolution_scale must be in (0, 1]")
+        if self.window_size < 3 or self.pose_window < 0:
+            raise ConfigError("window_size must be >= 3 and pose_window >= 0")
+        for name in ("tracking_iters", "mapping_iters", "init_iters"):
+            if getattr(self, name) < 0:
+                raise ConfigError(f"{name} must be >= 0")
+        if (self.event_tracking or self.event_mapping) and self.n_segments < 2:
+            raise ConfigError("event losses need n_segments >= 2 (events live between sub-poses)")
+        return self
+
+    def to_dict(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)
+
+    def replace(self, **changes: Any) -> SlamConfig:
+        unknown = set(changes) - {f.name for f in dataclasses.fields(self)}
+        if unknown:
+            raise ConfigError(f"unknown SLAM option(s): {', '.join(sorted(unknown))}")
+        return dataclasses.replace(self, **changes)
+
+
+def paper_preset() -> SlamConfig:
+    """Paper / MonoGS values at full sequence resolution (GPU-sized work)."""
+    return SlamConfig()
+
+
+def cpu_preset() -> SlamConfig:
+    """Same method, a fraction of the work: half resolution, K=3, few iterations, and each
+    mapping iteration renders a random subset of the mapping set. Meant for 2 CPU cores."""
+    return SlamConfig(
+        n_segments=3,
+        resolution_scale=0.5,
+        tracking_iters=40,
+        converged_threshold=2e-4,
+        init_iters=120,
+        mapping_iters=25,
+        views_per_iter=3,
+        prune_every=25,
+        prune_offset=24,
+        prune_opacity=0.1,
+        pcd_downsample_init=2,
+        pcd_downsample=8,
+        edge_blocks=16,
+        lr_colors=0.01,
+        lr_opacity=0.05,
+        lr_means=0.002,
+        lr_scales=0.01,
+        lr_rot=0.004,
+        lr_trans=0.002,
+    )
+
+
+PRESETS = {"paper": paper_preset, "cpu": cpu_preset}
+
+
+def preset(name: str) -> SlamConfig:
+    """The named preset (``paper`` or ``cpu``)."""
+    try:
+        return PRESETS[name]()
+    except KeyError:
+        raise ConfigError(f"unknown preset {name!r} (choose from {', '.join(PRESETS)})") from None

@@ -1,0 +1,120 @@
+"""Per-frame observations at the SLAM's internal resolution, and per-frame estimated state."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+import torch
+
+from egs_bench.geometry import Intrinsics
+from egs_bench.slam.config import SlamConfig
+from egs_bench.slam.exposure import segment_edges_us, subpose_fractions
+from egs_bench.slam.losses import depth_valid_mask, edge_mask, rgb_boundary_mask
+
+
+@dataclass
+class FrameObs:
+    """What the sensors gave for one frame, ready for the losses (internal resolution).
+
+    Attributes:
+        index: frame index in the sequence.
+        rgb: observed LDR image [H, W, 3] float32 in [0, 1] (sRGB-encoded values, as stored).
+        depth: depth [H, W] metres (0 = invalid).
+        rgb_mask, depth_mask: bool [H, W] (MonoGS boundary / valid-depth masks).
+        edge_weight: [H, W] float MonoGS tracking edge mask, or None.
+        fractions: sub-pose fractions eta_k / tau, [M] (M = K + 1, or [1.0] without blur model).
+        event_maps: [K, H, W] float32 polarity sums per segment (area-averaged when the internal
+            resolution is reduced), or None when events are not used.
+        n_events: number of events in the exposure window.
+    """
+
+    index: int
+    rgb: torch.Tensor
+    depth: torch.Tensor
+    rgb_mask: torch.Tensor
+    depth_mask: torch.Tensor
+    edge_weight: torch.Tensor | None
+    fractions: torch.Tensor
+    event_maps: torch.Tensor | None
+    n_events: int
+
+
+def internal_intrinsics(full: Intrinsics, scale: float) -> Intrinsics:
+    """Intrinsics of the internal processing resolution (``scale`` x the sequence's)."""
+    if scale >= 1.0:
+        return full
+    w = max(8, int(round(full.width * scale)))
+    h = max(8, int(round(full.height * scale)))
+    return full.resized(w, h)
+
+
+def _area_resize(img: np.ndarray, w: int, h: int) -> np.ndarray:
+    return cv2.resize(img, (w, h), interpolation=cv2.INTER_AREA)
+
+
+def _resize_depth(depth: np.ndarray, w: int, h: int) -> np.ndarray:
+    """Downsample depth without mixing invalid (0) pixels into valid ones."""
+    if depth.shape == (h, w):
+        return depth
+    valid = (depth > 0).astype(np.float32)
+    num = cv2.resize(depth * valid, (w, h), interpolation=cv2.INTER_AREA)
+    den = cv2.resize(valid, (w, h), interpolation=cv2.INTER_AREA)
+    out = np.where(den > 0.999, num / np.maximum(den, 1e-6), 0.0)
+    return out.astype(np.float32)
+
+
+def load_frame(seq, i: int, cam: Intrinsics, cfg: SlamConfig, want_events: bool,
+               device: torch.device) -> FrameObs:
+    """Read frame ``i`` of ``seq`` and prepare it at the resolution of ``cam``."""
+    w, h = cam.width, cam.height
+    rgb = seq.rgb(i).astype(np.float32) / 255.0
+    depth = seq.depth(i).astype(np.float32)
+    if rgb.shape[:2] != (h, w):
+        rgb = _area_resize(rgb, w, h)
+        depth = _resize_depth(depth, w, h)
+    t0, t1 = (int(v) for v in seq.exposure(i))
+    blur = cfg.n_segments > 1
+    n_events = 0
+    event_maps = None
+    if blur:
+        has_events = getattr(seq, "has_events", True)
+        ev_t = seq.events.window(t0, t1 + 1).t if has_events else np.zeros(0, np.int64)
+        n_events = len(ev_t)
+        fr = subpose_fractions(ev_t, t0, t1, cfg.n_segments)
+        if want_events:
+            if has_events and n_events > 0:
+                maps = seq.event_maps(i, segment_edges_us(fr, t0, t1)).astype(np.float32)
+            else:
+                maps = np.zeros((cfg.n_segments, seq.height, seq.width), np.float32)
+            if maps.shape[1:] != (h, w):
+                # Area mean: the log change of an area-averaged pixel is about the mean of the
+                # log changes of its sub-pixels, i.e. theta x the mean polarity sum.
+                maps = np.stack([_area_resize(m, w, h) for m in maps])
+            event_maps = torch.from_numpy(maps).to(device)
+    else:
+        fr = np.array([1.0])
+    rgb_t = torch.from_numpy(np.ascontiguousarray(rgb)).to(device)
+    depth_t = torch.from_numpy(np.ascontiguousarray(depth)).to(device)
+    edge = None
+    if cfg.use_edge_mask:
+        edge = torch.from_numpy(edge_mask(rgb, cfg.edge_threshold, cfg.edge_blocks)).to(device)
+    return FrameObs(
+        index=i, rgb=rgb_t, depth=depth_t,
+        rgb_mask=rgb_boundary_mask(rgb_t, cfg.rgb_boundary_threshold),
+        depth_mask=depth_valid_mask(depth_t), edge_weight=edge,
+        fractions=torch.tensor(fr, dtype=torch.float64, device=device),
+        event_maps=event_maps, n_events=n_events,
+    )
+
+
+@dataclass
+class FrameState:
+    """Estimated exposure trajectory (world-to-camera, float64 [4, 4]) and exposure of a frame."""
+
+    index: int
+    pose0_cw: torch.Tensor
+    pose1_cw: torch.Tensor
+    exp_a: float = 0.0
+    exp_b: float = 0.0

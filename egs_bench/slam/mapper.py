@@ -1,0 +1,168 @@
+"""Mapping: optimise the Gaussians (and the latest keyframes' exposure trajectories, their
+exposures and the CRF) on the keyframe window plus random older keyframes (paper §III.D,
+MonoGS single-process backend)."""
+
+from __future__ import annotations
+
+import torch
+
+from egs_bench.render import GaussianMap
+from egs_bench.slam.config import SlamConfig
+from egs_bench.slam.crf import CameraResponse
+from egs_bench.slam.frames import FrameObs, FrameState
+from egs_bench.slam.losses import isotropic_loss
+from egs_bench.slam.render_model import frame_loss, render_views, subposes
+from egs_bench.slam.tracker import PoseIncrements
+
+
+class Mapper:
+    """Holds the map optimisation state across keyframes.
+
+    Deviation from MonoGS (documented in docs/notes/slam.md): the Gaussian Adam state is rebuilt
+    for every mapping round (insertion and pruning replace the tensors), and there is no
+    clone/split densification; insertion is denser instead.
+    """
+
+    def __init__(self, gmap: GaussianMap, crf: CameraResponse, cfg: SlamConfig, K: torch.Tensor,
+                 width: int, height: int, theta: tuple[float, float], eps: float,
+                 generator: torch.Generator) -> None:
+        self.gmap, self.crf, self.cfg = gmap, crf, cfg
+        self.K, self.width, self.height = K, width, height
+        self.theta, self.eps, self.gen = theta, eps, generator
+        self.iteration = 0
+        self.crf_opt = None
+        crf_params = list(crf.parameters())
+        if crf_params:
+            self.crf_opt = torch.optim.Adam(crf_params, lr=cfg.lr_crf)
+
+    def _gaussian_optimizer(self) -> torch.optim.Adam:
+        g, c = self.gmap, self.cfg
+        g.requires_grad_(True)
+        return torch.optim.Adam([
+            {"params": [g.means], "lr": c.lr_means},
+            {"params": [g.colors], "lr": c.lr_colors},
+            {"params": [g.opacity_logits], "lr": c.lr_opacity},
+            {"params": [g.log_scales], "lr": c.lr_scales},
+            {"params": [g.quats], "lr": c.lr_quats},
+        ], eps=1e-15)
+
+    def optimise(self, states: dict[int, FrameState], observations: dict[int, FrameObs],
+                 window: list[int], all_keyframes: list[int], iterations: int,
+                 *, initial: bool = False, fixed_end_pose: int | None = 0) -> float:
+        """Run ``iterations`` mapping iterations; returns the last total loss.
+
+        Args:
+            states: estimated trajectories of keyframes (updated in place for refined ones).
+            window: keyframe window, newest first.
+            all_keyframes: every keyframe so far (random extra views come from outside the
+                window).
+            initial: MonoGS map initialisation (frame 0 only; no isotropic term, no exposure).
+            fixed_end_pose: keyframe whose ``T_tau`` is never refined (frame 0, placed at GT);
+                its ``T_0`` is refined when the blur model is on.
+        """
+        cfg = self.cfg
+        opt = self._gaussian_optimizer()
+        dev, pdt = self.gmap.device, states[window[0]].pose1_cw.dtype
+        refine = [k for k in window[: max(cfg.pose_window, 1 if initial else 0)]]
+        blur = cfg.n_segments > 1
+        # Which pose slots of each refined keyframe move: [T_0, T_tau].
+        slots = {k: [blur, k != fixed_end_pose] for k in refine}
+        refine = [k for k in refine if any(slots[k])]
+        inc = PoseIncrements(2 * len(refine), pdt, dev)
+        exposure = {k: (torch.tensor(states[k].exp_a, dtype=self.gmap.dtype, device=dev,
+                                     requires_grad=True),
+                        torch.tensor(states[k].exp_b, dtype=self.gmap.dtype, device=dev,
+                                     requires_grad=True)) for k in window}
+        groups = [{"params": [inc.rho], "lr": cfg.lr_trans * cfg.kf_pose_lr_scale},
+                  {"params": [inc.theta], "lr": cfg.lr_rot * cfg.kf_pose_lr_scale}]
+        use_exposure = cfg.exposure_compensation and not initial
+        if use_exposure:
+            groups.append({"params": [t for k in window if k != fixed_end_pose
+                                      for t in exposure[k]], "lr": cfg.lr_exposure})
+        kf_opt = torch.optim.Adam(groups)
+        slot_mask = torch.tensor([[float(s) for s in slots[k]] for k in refine], dtype=pdt,
+                                 device=dev).reshape(-1, 1)
+        loss_val = float("nan")
+        prune_due = False
+        for _ in range(iterations):
+            views = list(window)
+            others = [k for k in all_keyframes if k not in window]
+            if others and cfg.n_random_kfs > 0:
+                pick = torch.randperm(len(others), generator=self.gen)[: cfg.n_random_kfs]
+                views += [others[int(j)] for j in pick]
+            if cfg.views_per_iter is not None and len(views) > cfg.views_per_iter:
+                rest = views[1:]
+                pick = torch.randperm(len(rest), generator=self.gen)[: cfg.views_per_iter - 1]
+                views = [views[0]] + [rest[int(j)] for j in pick]
+            opt.zero_grad(set_to_none=True)
+            kf_opt.zero_grad(set_to_none=True)
+            if self.crf_opt is not None:
+                self.crf_opt.zero_grad(set_to_none=True)
+            total = torch.zeros((), dtype=self.gmap.dtype, device=dev)
+            moved = None
+            if refine:
+                base = torch.stack([p for k in refine
+                                    for p in (states[k].pose0_cw, states[k].pose1_cw)])
+                xi_masked = torch.cat([inc.rho, inc.theta], -1) * slot_mask
+                from egs_bench.slam.lie import se3_exp
+
+                moved = se3_exp(xi_masked) @ base
+            for k in views:
+                if moved is not None and k in refine:
+                    j = refine.index(k)
+                    p0, p1 = moved[2 * j], moved[2 * j + 1]
+                else:
+                    p0, p1 = states[k].pose0_cw, states[k].pose1_cw
+                obs = observations[k]
+                res = render_views(self.gmap, subposes(p0, p1, obs.fractions), self.K,
+                                   self.width, self.height, cfg)
+                zero = torch.zeros((), dtype=self.gmap.dtype, device=dev)
+                a, b = exposure.get(k, (zero, zero)) if use_exposure else (zero, zero)
+                parts = frame_loss(res, obs, self.crf, a, b, cfg, tracking=False,
+                                   use_events=cfg.event_mapping, theta=self.theta, eps=self.eps)
+                total = total + parts.total
+            if not initial:
+                total = total + cfg.lambda_iso * isotropic_loss(self.gmap.scales)
+            loss_val = float(total)
+            if not torch.isfinite(total):
+                break
+            total.backward()
+            opt.step()
+            kf_opt.step()
+            if self.crf_opt is not None and not initial:
+                self.crf_opt.step()
+            if refine:
+                with torch.no_grad():
+                    xi = torch.cat([inc.rho, inc.theta], -1) * slot_mask
+                    from egs_bench.slam.lie import se3_exp
+
+                    new = se3_exp(xi) @ torch.stack(
+                        [p for k in refine for p in (states[k].pose0_cw, states[k].pose1_cw)])
+                    for j, k in enumerate(refine):
+                        states[k].pose0_cw, states[k].pose1_cw = new[2 * j], new[2 * j + 1]
+                    inc.rho.zero_()
+                    inc.theta.zero_()
+            if blur is False:
+                for k in refine:
+                    states[k].pose0_cw = states[k].pose1_cw
+            self.iteration += 1
+            if not initial and self.iteration % cfg.prune_every == cfg.prune_offset % max(
+                    cfg.prune_every, 1):
+                prune_due = True
+        for k in window:
+            if use_exposure and k != fixed_end_pose:
+                states[k].exp_a = float(exposure[k][0])
+                states[k].exp_b = float(exposure[k][1])
+        self.gmap.requires_grad_(False)
+        with torch.no_grad():
+            if initial:
+                self._prune(cfg.init_prune_opacity)
+            elif prune_due:
+                self._prune(cfg.prune_opacity)
+        return loss_val
+
+    def _prune(self, min_opacity: float) -> int:
+        remove = self.gmap.opacities.detach() < min_opacity
+        if bool(remove.all()):  # never empty the map entirely
+            return 0
+        return self.gmap.prune(remove)
