@@ -80,20 +80,21 @@ class SamplingConfig:
         max_log_step: bound on the ``log_percentile``-th percentile of ``|Δ log B|``.
         log_percentile: percentile over pixels used for the log-change bound.
         max_bisections: how many times a step may be halved for the log-change bound.
-        fixed_steps: if set, exactly this many equal steps between boundaries (no adaptivity).
+        fixed_step_us: if set, no adaptivity: each interval between boundaries is split into
+            ``ceil(length / fixed_step_us)`` equal steps.
     """
 
     max_flow_px: float = 1.0
     max_log_step: float = 0.15
     log_percentile: float = 99.0
     max_bisections: int = 3
-    fixed_steps: int | None = None
+    fixed_step_us: int | None = None
 
     def __post_init__(self) -> None:
         if not self.max_flow_px > 0 or not self.max_log_step > 0:
             raise ConfigError("max_flow_px and max_log_step must be positive")
-        if self.fixed_steps is not None and self.fixed_steps < 1:
-            raise ConfigError("fixed_steps must be >= 1")
+        if self.fixed_step_us is not None and self.fixed_step_us < 1:
+            raise ConfigError("fixed_step_us must be >= 1")
 
 
 def max_flow_px(a: LatentFrame, b: LatentFrame, intrinsics: Intrinsics, stride: int = 4) -> float:
@@ -140,8 +141,8 @@ class _Sampler:
                 ) -> Iterator[tuple[int, LatentFrame, np.ndarray]]:
         """Samples in ``(t_a, t_b]`` (``a`` already emitted)."""
         b = self.render(t_b)
-        if self.config.fixed_steps is not None:
-            steps = self.config.fixed_steps
+        if self.config.fixed_step_us is not None:
+            steps = math.ceil((t_b - a[0]) / self.config.fixed_step_us)
         else:
             flow = max_flow_px(a[1], b[1], self.source.intrinsics)
             self.max_flow_seen = max(self.max_flow_seen, flow)
@@ -152,7 +153,7 @@ class _Sampler:
         prev = a
         for t in times:
             cur = b if t == t_b else self.render(int(t))
-            if self.config.fixed_steps is None:
+            if self.config.fixed_step_us is None:
                 yield from self._refine(prev, cur, self.config.max_bisections)
             else:
                 yield cur

@@ -113,7 +113,10 @@ def test_flow_interpolator_end_to_end(replica_dir, tmp_path):
                             upsample=4, max_frames=3, progress=False)
     seq = Sequence.open(out)
     assert len(seq) == 2 and seq.meta["eventreplica"]["interpolator"] == "flow"
-    assert seq.meta["sampling"]["fixed_steps"] == 4
+    assert seq.meta["sampling"]["fixed_step_us"] == 33_333 // 4
+    # about 4 latent samples per strided interval (+1 for the exposure boundary inside it)
+    samples_per_interval = (seq.meta["sampling"]["num_samples"] - 1) / (len(seq) - 0.4)
+    assert 4 <= samples_per_interval <= 6
     assert len(seq.events) > 0
 
 

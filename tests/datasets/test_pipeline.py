@@ -70,7 +70,7 @@ def test_adaptive_sampling_bounds_flow(tmp_path: Path) -> None:
 
 def test_fixed_steps(tmp_path: Path) -> None:
     out = generate_sequence(PlaneSource(), np.array([0]), np.array([9_000]), tmp_path / "f",
-                            sampling=SamplingConfig(fixed_steps=9), progress=False)
+                            sampling=SamplingConfig(fixed_step_us=1000), progress=False)
     assert len(Sequence.open(out).dense_trajectory) == 10
 
 

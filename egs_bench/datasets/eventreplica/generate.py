@@ -75,8 +75,8 @@ def make_eventreplica(
         fps: frame rate of the strided frames, Hz.
         exposure_ms: exposure per output frame, at most one frame period.
         upsample: ``"auto"`` = the pipeline's adaptive rule (pixel-motion and log-change
-            bounds); an int ``N`` = exactly ``N`` equal sub-steps between consecutive exposure
-            boundaries (inside each exposure and inside each gap between exposures).
+            bounds); an int ``N`` = latent samples every ``period / N`` (about ``N`` per strided
+            interval; exposure boundaries are always samples, so a few more).
         interpolator: ``"depth"`` (pose-aware view synthesis) or ``"flow"`` (DIS optical flow).
         width, height: output size after the centre crop.
         resize: size ``(w, h)`` to resize to before cropping; None = crop only.
@@ -105,7 +105,7 @@ def make_eventreplica(
             f"at {fps} fps (exposures must not overlap)"
         )
     if sampling is None:
-        sampling = _sampling_for(upsample)
+        sampling = _sampling_for(upsample, period_us)
     source = ReplicaSource(
         scene, fps=fps, stride=stride, first=first, num_frames=max_frames,
         geometry=ResizeCrop(width=width, height=height, resize=resize),
@@ -162,7 +162,7 @@ def make_eventreplica_scenes(
     return [make_eventreplica(root / s, Path(out) / s, **kwargs) for s in scenes]
 
 
-def _sampling_for(upsample: str | int) -> SamplingConfig:
+def _sampling_for(upsample: str | int, period_us: float) -> SamplingConfig:
     if isinstance(upsample, str):
         if upsample == "auto":
             return SamplingConfig()
@@ -173,4 +173,4 @@ def _sampling_for(upsample: str | int) -> SamplingConfig:
                               f"not {upsample!r}") from None
     if upsample < 1:
         raise ConfigError(f"upsample must be >= 1, got {upsample}")
-    return SamplingConfig(fixed_steps=int(upsample))
+    return SamplingConfig(fixed_step_us=max(1, math.floor(period_us / int(upsample))))
