@@ -1,0 +1,14 @@
+"""Evaluation: run folders, ATE, image metrics, LPIPS, protocols, leaderboards, plots.
+
+Modules (each with one job):
+
+- :mod:`~egs_bench.eval.run_folder`: the run-folder contract between methods and evaluation;
+- :mod:`~egs_bench.eval.ate`: ATE with evo (association, Umeyama SE(3)/Sim(3), statistics);
+- :mod:`~egs_bench.eval.image_metrics`: PSNR (full / MonoGS-masked), SSIM (3DGS / standard);
+- :mod:`~egs_bench.eval.lpips`: LPIPS v0.1 (AlexNet / VGG16) without torchvision or downloads;
+- :mod:`~egs_bench.eval.protocols`: named presets (``egs``, ``monogs``);
+- :mod:`~egs_bench.eval.evaluate`: scores one run folder into ``metrics.json``;
+- :mod:`~egs_bench.eval.leaderboard`: Markdown / LaTeX / CSV tables over many runs;
+- :mod:`~egs_bench.eval.plots`: trajectory, ATE-over-time and qualitative figures;
+- :mod:`~egs_bench.eval.compare`, :mod:`~egs_bench.eval.image_io`: two-image comparison, I/O.
+"""
