@@ -109,9 +109,24 @@ def rendering_frames(num_frames: int, protocol: Protocol,
     return frames
 
 
-def evaluate_renders(run: RunFolder, protocol: Protocol, seq,
+def processed_frames(run: RunFolder, protocol: Protocol, seq) -> int:
+    """Number of leading sequence frames the run covers: those up to its last estimated pose.
+
+    A run stopped early (e.g. ``--max-frames``) is scored on the frames it processed; the
+    coverage is recorded in ``metrics.json`` and shown by leaderboards.
+    """
+    last = float(run.read_trajectory().timestamps[-1])
+    stamps = np.asarray(seq.timestamps_s, dtype=np.float64)
+    return int(np.searchsorted(stamps, last + protocol.ate_max_diff_s, side="right"))
+
+
+def evaluate_renders(run: RunFolder, protocol: Protocol, seq, num_frames: int | None = None,
                      progress: bool = False) -> dict[str, Any]:
-    """PSNR / SSIM / LPIPS of the run's renders under ``protocol`` (per frame and mean)."""
+    """PSNR / SSIM / LPIPS of the run's renders under ``protocol`` (per frame and mean).
+
+    Args:
+        num_frames: score only frames below this index (default: the whole sequence).
+    """
     from tqdm import tqdm
 
     from egs_bench.eval.lpips import load_lpips, lpips_distance
@@ -120,7 +135,7 @@ def evaluate_renders(run: RunFolder, protocol: Protocol, seq,
     if protocol.render_skip_keyframes and keyframes is None:
         raise InputError(run.path / "keyframes.txt",
                          f"not found; protocol {protocol.name!r} skips keyframes in rendering")
-    frames = rendering_frames(len(seq), protocol, keyframes)
+    frames = rendering_frames(len(seq) if num_frames is None else num_frames, protocol, keyframes)
     missing = [f for f in frames if not run.render_path(f).is_file()]
     if missing:
         raise InputError(run.render_path(missing[0]),
@@ -188,6 +203,13 @@ def evaluate_run(run_dir: str | Path, protocol: str | Protocol = DEFAULT_PROTOCO
 
     ate = evaluate_ate(run, proto, seq)
     rendering = None
+    coverage = None
+    if seq is not None:
+        covered = processed_frames(run, proto, seq)
+        coverage = {"frames_processed": covered, "frames_in_sequence": len(seq)}
+        if covered < len(seq):
+            notes.append(f"the run covers {covered} of the sequence's {len(seq)} frames; "
+                         "metrics are over those")
     if seq is None:
         if run.render_indices():
             notes.append("renders not scored: the run has no sequence folder with reference "
@@ -195,7 +217,8 @@ def evaluate_run(run_dir: str | Path, protocol: str | Protocol = DEFAULT_PROTOCO
     elif not run.render_indices():
         notes.append("no renders in the run folder: rendering metrics not computed")
     else:
-        rendering = evaluate_renders(run, proto, seq, progress=progress)
+        rendering = evaluate_renders(run, proto, seq, coverage["frames_processed"],
+                                     progress=progress)
     timing = run.read_timing()
     speed = None
     if timing is not None:
@@ -209,6 +232,7 @@ def evaluate_run(run_dir: str | Path, protocol: str | Protocol = DEFAULT_PROTOCO
         "ate": ate,
         "rendering": rendering,
         "speed": speed,
+        "coverage": coverage,
         "notes": notes,
     }
     metrics = _finite_or_none(metrics)

@@ -156,6 +156,10 @@ def collect(runs_root: str | Path, protocol: str = DEFAULT_PROTOCOL,
             notes.append(f"{MISSING}: {what}: {exc}")
             continue
         values[cell] = {k: v for k in metrics if (v := _metric_value(data, k)) is not None}
+        cov = data.get("coverage") or {}
+        if cov and cov.get("frames_processed", 0) < cov.get("frames_in_sequence", 0):
+            notes.append(f"{what}: covers only {cov['frames_processed']} of "
+                         f"{cov['frames_in_sequence']} frames")
     shown = [k for k in metrics if any(k in v for v in values.values())] or list(metrics)
     methods_sorted, sequences_sorted = sorted(methods), sorted(sequences)
     for m in methods_sorted:

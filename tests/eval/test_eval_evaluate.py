@@ -136,3 +136,20 @@ def test_evaluate_trajectory_only_run(tmp_path, tiny_sequence) -> None:
                        groundtruth=tiny_sequence / "groundtruth.txt")
     with pytest.raises(InputError, match="needs a sequence folder or a ground-truth file"):
         import_tum_run(run.trajectory_path, tmp_path / "imp2", method="e", sequence_name="t")
+
+
+@needs_weights
+def test_evaluate_partial_run_scores_processed_frames(tmp_path, tiny_sequence) -> None:
+    from egs_bench.eval.leaderboard import leaderboard
+
+    run = make_run(tmp_path / "runs", tiny_sequence, render_every=1)
+    est = run.read_trajectory()
+    run.write_trajectory(est.timestamps[:7], est.poses[:7])  # stopped after 7 of 12 frames
+    for i in range(7, 12):
+        run.render_path(i).unlink()
+    m = evaluate_run(run.path, "egs")
+    assert m["coverage"] == {"frames_processed": 7, "frames_in_sequence": 12}
+    assert m["rendering"]["per_frame"]["frame"] == [0, 5]
+    assert m["ate"]["n_matched"] == 7
+    assert "covers 7 of the sequence's 12 frames" in m["notes"][0]
+    assert "egs on tiny: covers only 7 of 12 frames" in leaderboard(tmp_path / "runs")
