@@ -50,10 +50,10 @@ class _CompositeTiles(torch.autograd.Function):
         dt = arrs[0].dtype
         rgb = np.empty((C, height, width, 3), dt)
         dep = np.empty((C, height, width), dt)
-        t_final = np.empty((C, height, width), dt)
+        t_final = np.empty((C, height, width), np.float64)
         last = np.empty((C, height, width), np.int64)
         touch = np.zeros(isect.shape[0], np.int32)
-        consts, centre = nk.tables(dt, RC.ALPHA_MAX, RC.ALPHA_MIN, RC.T_MIN, RC.TOUCH_T,
+        consts, centre = nk.tables(RC.ALPHA_MAX, RC.ALPHA_MIN, RC.T_MIN, RC.TOUCH_T,
                                    max(width, height))
         nk.raster_fwd(*arrs, isect, offsets, width, height, rgb, dep, t_final, last, touch,
                       consts, centre)
@@ -62,7 +62,7 @@ class _CompositeTiles(torch.autograd.Function):
         ctx.saved = (arrs, isect, offsets, t_final, last, width, height)
         visibility = torch.from_numpy(vis)
         ctx.mark_non_differentiable(visibility)
-        alpha = torch.from_numpy(1.0 - t_final)
+        alpha = torch.from_numpy((1.0 - t_final).astype(dt))
         return torch.from_numpy(rgb), torch.from_numpy(dep), alpha, visibility
 
     @staticmethod
@@ -81,7 +81,7 @@ class _CompositeTiles(torch.autograd.Function):
         g_dep_np = _np(g_dep) if g_dep is not None else zeros
         g_alpha_np = _np(g_alpha) if g_alpha is not None else zeros
         rows = np.zeros((isect.shape[0], nk.NGRAD), dt)
-        consts, centre = nk.tables(dt, RC.ALPHA_MAX, RC.ALPHA_MIN, RC.T_MIN, RC.TOUCH_T,
+        consts, centre = nk.tables(RC.ALPHA_MAX, RC.ALPHA_MIN, RC.T_MIN, RC.TOUCH_T,
                                    max(width, height))
         nk.raster_bwd(*arrs, isect, offsets, width, height, t_final, last, g_rgb_np, g_dep_np,
                       g_alpha_np, rows, consts, centre)
