@@ -123,7 +123,7 @@ class Mapper:
                 total = total + parts.total
             if not initial:
                 total = total + cfg.lambda_iso * isotropic_loss(self.gmap.scales)
-            loss_val = float(total)
+            loss_val = float(total.detach())
             if not torch.isfinite(total):
                 break
             total.backward()
@@ -151,8 +151,8 @@ class Mapper:
                 prune_due = True
         for k in window:
             if use_exposure and k != fixed_end_pose:
-                states[k].exp_a = float(exposure[k][0])
-                states[k].exp_b = float(exposure[k][1])
+                states[k].exp_a = float(exposure[k][0].detach())
+                states[k].exp_b = float(exposure[k][1].detach())
         self.gmap.requires_grad_(False)
         with torch.no_grad():
             if initial:

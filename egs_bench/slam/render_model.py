@@ -83,4 +83,5 @@ def frame_loss(res, obs: FrameObs, crf: CameraResponse, exp_a: torch.Tensor,
         l_he, l_ne = event_loss(pred, obs.event_maps, theta[0], theta[1], valid)
         lam_ne = cfg.lambda_ne if cfg.no_event_loss else 0.0
         total = total + cfg.lambda_e * (l_he + lam_ne * l_ne)
-    return LossParts(total, float(l_i), float(l_d), float(l_he), float(l_ne))
+    return LossParts(total, float(l_i.detach()), float(l_d.detach()), float(l_he.detach()),
+                     float(l_ne.detach()))

@@ -85,7 +85,7 @@ def track_frame(gmap: GaussianMap, crf: CameraResponse, obs: FrameObs, init: Fra
             res = render_views(gmap, subposes(p0, p1, obs.fractions), K, width, height, cfg)
             parts = frame_loss(res, obs, crf, exp_a, exp_b, cfg, tracking=True,
                                use_events=cfg.event_tracking, theta=theta, eps=eps)
-            loss_val = float(parts.total)
+            loss_val = float(parts.total.detach())
             if not math.isfinite(loss_val):
                 break
             parts.total.backward()
@@ -99,7 +99,8 @@ def track_frame(gmap: GaussianMap, crf: CameraResponse, obs: FrameObs, init: Fra
         gmap.requires_grad_(was_grad)
     if not blur:
         poses[0] = poses[1]
-    state = FrameState(init.index, poses[0].clone(), poses[1].clone(), float(exp_a), float(exp_b))
+    state = FrameState(init.index, poses[0].clone(), poses[1].clone(), float(exp_a.detach()),
+                       float(exp_b.detach()))
     return TrackResult(state, loss_val, it, converged)
 
 
