@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import os
 import time
 from pathlib import Path
 
@@ -11,7 +10,7 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
-from egs_bench.errors import ConfigError, InputError
+from egs_bench.errors import ConfigError
 from egs_bench.eval.run_folder import RunFolder
 from egs_bench.fileio import write_text_atomic
 from egs_bench.geometry import invert_pose
@@ -19,33 +18,14 @@ from egs_bench.slam.config import SlamConfig
 from egs_bench.slam.render_model import render_views
 from egs_bench.slam.system import FrameReport, SlamSystem
 
-DATA_ENV = "EGS_BENCH_DATA"
-
-
-def data_root() -> Path:
-    """Folder where sequence names are resolved (``$EGS_BENCH_DATA``, default ``./data``)."""
-    return Path(os.environ.get(DATA_ENV, "data"))
-
 
 def resolve_sequence(name_or_path: str | Path):
-    """Open a sequence by folder path, or by name under :func:`data_root`; built-in synthetic
-    names are generated there on first use (when the synthetic module provides them)."""
+    """Open a sequence by folder path or name (see :mod:`egs_bench.datasets.registry`; built-in
+    synthetic names are generated under the data root on first use)."""
+    from egs_bench.datasets.registry import resolve_sequence as resolve_path
     from egs_bench.datasets.sequence import Sequence
 
-    p = Path(name_or_path)
-    if p.is_dir():
-        return Sequence.open(p)
-    candidate = data_root() / str(name_or_path)
-    if candidate.is_dir():
-        return Sequence.open(candidate)
-    try:
-        from egs_bench.datasets.synthetic import builtin_names, make_builtin  # type: ignore
-    except ImportError:
-        builtin_names, make_builtin = (lambda: []), None
-    if make_builtin is not None and str(name_or_path) in builtin_names():
-        make_builtin(str(name_or_path), candidate)
-        return Sequence.open(candidate)
-    raise InputError(p, f"no such sequence folder (also looked in {candidate})")
+    return Sequence.open(resolve_path(name_or_path))
 
 
 def _pick_device(device: str) -> str:
