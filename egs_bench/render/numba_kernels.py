@@ -232,24 +232,25 @@ def raster_bwd(mean2d, conic, depth, opac, m2s, colors, ext, isect, offsets, W, 
         py1 = min(py0 + TILE, H)
         P = TILE * TILE
         Tr = np.ones(P, np.float64)
-        Tf = np.ones(P, np.float64)
         last = np.full(P, -1, np.int64)
-        dC = np.zeros((P, 4), np.float64)
-        dA = np.zeros(P, np.float64)
-        accC = np.zeros((P, 4), np.float64)
+        dC = np.zeros((P, 4), np.float64)  # dL/d(r, g, b, depth) of the pixel
+        dAT = np.zeros(P, np.float64)  # dL/dalpha_img * T_final
+        # sum over the Gaussians behind the current one of w (c . dC), divided by T: one
+        # scalar instead of four channels, since the "behind" colour only enters dL/dalpha
+        # through its dot product with dC.
+        behind = np.zeros(P, np.float64)
         jmax = -1
         for v in range(py0, py1):
             for u in range(px0, px1):
                 p = (v - py0) * TILE + (u - px0)
                 Tr[p] = out_T[k, v, u]
-                Tf[p] = out_T[k, v, u]
                 last[p] = out_last[k, v, u]
                 jmax = max(jmax, last[p])
                 dC[p, 0] = g_rgb[k, v, u, 0]
                 dC[p, 1] = g_rgb[k, v, u, 1]
                 dC[p, 2] = g_rgb[k, v, u, 2]
                 dC[p, 3] = g_depth[k, v, u]
-                dA[p] = g_alpha[k, v, u]
+                dAT[p] = g_alpha[k, v, u] * out_T[k, v, u]
         for j in range(jmax, offsets[kt] - 1, -1):
             g = isect[j]
             mx = np.float64(mean2d[k, g, 0])
@@ -306,21 +307,22 @@ def raster_bwd(mean2d, conic, depth, opac, m2s, colors, ext, isect, offsets, W, 
                     if alpha < AMIN:
                         continue
                     one_m = ONE - alpha
-                    Ti = Tr[p] / one_m  # transmittance in front of this Gaussian
+                    inv = ONE / one_m
+                    Ti = Tr[p] * inv  # transmittance in front of this Gaussian
                     w = alpha * Ti
-                    s_r += w * dC[p, 0]
-                    s_g += w * dC[p, 1]
-                    s_bl += w * dC[p, 2]
-                    s_z += w * dC[p, 3]
+                    d0 = dC[p, 0]
+                    d1 = dC[p, 1]
+                    d2 = dC[p, 2]
+                    d3 = dC[p, 3]
+                    s_r += w * d0
+                    s_g += w * d1
+                    s_bl += w * d2
+                    s_z += w * d3
+                    cdot = cr * d0 + cg * d1 + cbl * d2 + z * d3
                     # dL/dalpha: this Gaussian's colour/depth minus what lies behind it, plus
                     # the final-alpha term (alpha_img = 1 - prod(1 - alpha_i)).
-                    dal = (Ti * ((cr - accC[p, 0]) * dC[p, 0] + (cg - accC[p, 1]) * dC[p, 1]
-                                 + (cbl - accC[p, 2]) * dC[p, 2] + (z - accC[p, 3]) * dC[p, 3])
-                           + dA[p] * Tf[p] / one_m)
-                    accC[p, 0] = alpha * cr + one_m * accC[p, 0]
-                    accC[p, 1] = alpha * cg + one_m * accC[p, 1]
-                    accC[p, 2] = alpha * cbl + one_m * accC[p, 2]
-                    accC[p, 3] = alpha * z + one_m * accC[p, 3]
+                    dal = Ti * (cdot - behind[p]) + dAT[p] * inv
+                    behind[p] = alpha * cdot + one_m * behind[p]
                     Tr[p] = Ti
                     if og <= AMAX:  # a clamped alpha has no gradient
                         s_o += G * dal

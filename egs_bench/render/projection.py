@@ -110,14 +110,17 @@ def project_gaussians(
     j00, j02 = fx / zs, -fx * tx / zs
     j11, j12 = fy / zs, -fy * ty / zs
 
-    cov_w = covariances_3d(quats, scales)  # [N,3,3]
-    cov_c = rot_wc[:, None] @ cov_w[None] @ rot_wc.transpose(-1, -2)[:, None]  # [C,N,3,3]
-    s00, s01, s02 = cov_c[..., 0, 0], cov_c[..., 0, 1], cov_c[..., 0, 2]
-    s11, s12, s22 = cov_c[..., 1, 1], cov_c[..., 1, 2], cov_c[..., 2, 2]
-    # Sigma_2d = J Sigma_c J^T with J = [[j00, 0, j02], [0, j11, j12]], plus the dilation.
-    a2 = j00 * j00 * s00 + 2 * j00 * j02 * s02 + j02 * j02 * s22 + RC.EPS2D
-    b2 = j00 * j11 * s01 + j00 * j12 * s02 + j02 * j11 * s12 + j02 * j12 * s22
-    c2 = j11 * j11 * s11 + 2 * j11 * j12 * s12 + j12 * j12 * s22 + RC.EPS2D
+    # Sigma_2d = (J R) M M^T (J R)^T with M = R_q diag(s): with V = J R M ([C,N,2,3]) it is
+    # V V^T, which avoids forming the [C,N,3,3] camera covariances (fewer, larger tensor ops).
+    m_w = quat_to_rotmat(quats) * scales[:, None, :]  # [N,3,3]
+    r0, r1, r2 = (rot_wc[:, None, i, :] for i in range(3))  # [C,1,3] rows of R
+    jr = torch.stack([j00[..., None] * r0 + j02[..., None] * r2,
+                      j11[..., None] * r1 + j12[..., None] * r2], -2)  # [C,N,2,3]
+    v = torch.einsum("cnki,nij->cnkj", jr, m_w)  # [C,N,2,3]
+    v0, v1 = v.unbind(-2)
+    a2 = (v0 * v0).sum(-1) + RC.EPS2D
+    b2 = (v0 * v1).sum(-1)
+    c2 = (v1 * v1).sum(-1) + RC.EPS2D
     det = a2 * c2 - b2 * b2
     valid = in_range & (det > 0) & torch.isfinite(det)
     det_s = torch.where(valid, det, torch.ones_like(det))

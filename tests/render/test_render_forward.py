@@ -58,7 +58,8 @@ def test_single_gaussian_matches_closed_form():
     means = torch.tensor([[0.0, 0.0, z]], dtype=torch.float64)
     K = torch.tensor([[[f, 0, 16.0], [0, f, 12.0], [0, 0, 1]]], dtype=torch.float64)
     out = rasterize(means, torch.tensor([[1.0, 0, 0, 0]], dtype=torch.float64),
-                    torch.full((1, 3), s, dtype=torch.float64), torch.tensor([o], dtype=torch.float64),
+                    torch.full((1, 3), s, dtype=torch.float64),
+                    torch.tensor([o], dtype=torch.float64),
                     torch.tensor([[1.0, 0.5, 0.25]]).double(), torch.eye(4).double()[None], K,
                     32, 24)
     var = (f * s / z) ** 2 + RC.EPS2D
