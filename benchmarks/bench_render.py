@@ -8,7 +8,7 @@ scene.py``) at 224x128 and 448x256 with K = 5 and K = 1 cameras, the median wall
   map parameter and the poses requiring grad;
 * ``pose bwd``: the same with only the poses requiring grad (tracking);
 
-and the peak resident-memory increase during a fwd+bwd call. The prototype
+and the peak resident-memory increase of fwd+bwd calls (measured in a fresh process). The prototype
 (``../shared/reference/rasterizer_proto``) and egs_bench runs are interleaved call by call, so
 both see the same machine load; the ratio column is prototype / ours (> 1: we are faster).
 Without ``../shared`` the prototype columns are skipped.
@@ -22,12 +22,16 @@ import argparse
 import os
 import statistics
 import sys
-import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
 
-import torch
+# Shared 2-core machines: OpenMP pools that spin-wait (torch's and numba's are separate) steal
+# each other's cores and made every variant 2-4x slower in our runs; passive waiting avoids it.
+# Must be set before the OpenMP runtimes load. Override by exporting OMP_WAIT_POLICY.
+os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+
+import torch  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 PROTO_DIR = ROOT.parent / "shared" / "reference" / "rasterizer_proto"
@@ -103,23 +107,28 @@ def _rss_mb() -> float:
         return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 2**20
 
 
-def peak_rss_increase(fn: Callable[[], object]) -> float:
-    """Peak RSS increase (MiB) during one call, sampled every 0.5 ms by a thread."""
+def peak_rss_child(impl: str, size: str, k: int) -> float:
+    """Peak RSS increase (MiB) of two fwd+bwd calls of ``impl``, measured in a fresh process
+    (``ru_maxrss`` after minus the RSS just before the first call; kernels load from the numba
+    cache), so that memory freed by earlier cases cannot hide it."""
+    import subprocess
+
+    out = subprocess.run([sys.executable, __file__, "--peak-child", impl, size, str(k)],
+                         capture_output=True, text=True, check=True)
+    return float(out.stdout.strip().splitlines()[-1])
+
+
+def _peak_child(impl: str, size: str, k: int) -> None:
+    import resource
+
+    w, h, f = SIZES[size]
+    fn = ours if impl == "ours" else make_proto()
+    p = with_grads(make_scene(N_GAUSSIANS, w, h, f, k), "fwd+bwd")
+    run = task(fn, p, w, h, "fwd+bwd")
     base = _rss_mb()
-    peak = [base]
-    stop = threading.Event()
-
-    def sample() -> None:
-        while not stop.is_set():
-            peak[0] = max(peak[0], _rss_mb())
-            time.sleep(0.0005)
-
-    t = threading.Thread(target=sample)
-    t.start()
-    fn()
-    stop.set()
-    t.join()
-    return peak[0] - base
+    run()
+    run()
+    print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024 - base)
 
 
 def task(impl: Callable, p: dict, width: int, height: int, mode: str) -> Callable[[], None]:
@@ -150,34 +159,44 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--runs", type=int, default=7, help="timed calls per implementation and case")
     ap.add_argument("--quick", action="store_true", help="only 224x128, K=5")
+    ap.add_argument("--no-timing", action="store_true", help="only the peak-memory columns")
+    ap.add_argument("--peak-child", nargs=3, metavar=("IMPL", "SIZE", "K"), help=argparse.SUPPRESS)
     args = ap.parse_args()
+    if args.peak_child:
+        _peak_child(args.peak_child[0], args.peak_child[1], int(args.peak_child[2]))
+        return
     proto = make_proto()
     impls = {"ours": ours} | ({"proto": proto} if proto else {})
     cases = [(s, k) for s in SIZES for k in (5, 1)]
     if args.quick:
         cases = [("224x128", 5)]
-    print(f"# torch {torch.__version__}, threads {torch.get_num_threads()}, N={N_GAUSSIANS}, "
+    print(f"# torch {torch.__version__}, threads {torch.get_num_threads()}, "
+          f"OMP_WAIT_POLICY={os.environ['OMP_WAIT_POLICY']}, N={N_GAUSSIANS}, "
           f"prototype {'found' if proto else 'absent'}; median of {args.runs} interleaved runs")
     rows = []
     for size, k in cases:
         w, h, f = SIZES[size]
         base = make_scene(N_GAUSSIANS, w, h, f, k)
         for mode in ("fwd", "fwd+bwd", "pose bwd"):
+            if args.no_timing and mode != "fwd+bwd":
+                continue
             p = with_grads(base, mode)
             runs = {name: task(fn, p, w, h, mode) for name, fn in impls.items()}
-            for fn in runs.values():  # compile / warm up
-                fn()
-                fn()
-            times: dict[str, list[float]] = {name: [] for name in runs}
-            for _ in range(args.runs):
-                for name, fn in runs.items():
-                    t0 = time.perf_counter()
+            med = {name: float("nan") for name in runs}
+            if not args.no_timing:
+                for fn in runs.values():  # compile / warm up
                     fn()
-                    times[name].append((time.perf_counter() - t0) * 1e3)
-            med = {name: statistics.median(v) for name, v in times.items()}
+                    fn()
+                times: dict[str, list[float]] = {name: [] for name in runs}
+                for _ in range(args.runs):
+                    for name, fn in runs.items():
+                        t0 = time.perf_counter()
+                        fn()
+                        times[name].append((time.perf_counter() - t0) * 1e3)
+                med = {name: statistics.median(v) for name, v in times.items()}
             mem = {}
             if mode == "fwd+bwd":
-                mem = {name: peak_rss_increase(fn) for name, fn in runs.items()}
+                mem = {name: peak_rss_child(name, size, k) for name in runs}
             row = {"size": size, "K": k, "mode": mode, "ours_ms": med["ours"],
                    "ours_peak_MiB": mem.get("ours")}
             if proto:
