@@ -10,7 +10,8 @@ Hand-held model (:class:`HandheldTrajectory`), all components smooth (sums of si
 * ``s = speed * t``: ``speed`` re-times the same path, so every velocity scales by ``speed``
   (and motion blur with it) while the visited places stay the same.
 
-Frequencies and phases come from ``seed``. Path frequencies are 0.05-0.4 Hz, shake 0.8-2.5 Hz.
+Frequencies and phases come from ``seed``. Path frequencies are 0.12-1 Hz, shake 2-6 Hz (at
+``speed = 1``).
 """
 
 from __future__ import annotations
@@ -72,8 +73,11 @@ class _SinusoidSum:
         return (self.weights[None] * np.sin(arg)).sum(axis=-1)
 
 
-_PATH_BANDS = [(0.05, 0.1), (0.1, 0.2), (0.2, 0.4)]
-_SHAKE_BANDS = [(0.8, 1.4), (1.4, 2.5)]
+# Frequency bands (Hz at speed 1). Chosen so that speed 1 gives a mean image motion of about
+# 4 px per 20 ms at 448 px width in the office / living room / studio (moderate blur); the
+# corridor, seen from farther away, moves about half as much in the image.
+_PATH_BANDS = [(0.12, 0.25), (0.25, 0.5), (0.5, 1.0)]
+_SHAKE_BANDS = [(2.0, 3.5), (3.5, 6.0)]
 
 
 class HandheldTrajectory:
