@@ -173,11 +173,7 @@ def raster_fwd(mean2d, conic, depth, opac, m2s, colors, ext, isect, offsets, W, 
                     Gn = Gn * En
                     En = En * ratio
                     p = row + u
-                    if done[p]:
-                        continue
-                    dx = centre[u] - mx
-                    power = -HALF * (ca * dx * dx + cc * dy * dy) - cb * dx * dy
-                    if power > 0:
+                    if done[p] or G > ONE:  # G > 1 <=> power > 0 (the rule's guard)
                         continue
                     alpha = min(o * G, AMAX)
                     if alpha < AMIN:
@@ -296,11 +292,7 @@ def raster_bwd(mean2d, conic, depth, opac, m2s, colors, ext, isect, offsets, W, 
                     Gn = Gn * En
                     En = En * ratio
                     p = row + u
-                    if j > last[p]:
-                        continue
-                    dx = centre[u] - mx
-                    power = -HALF * (ca * dx * dx + cc * dy * dy) - cb * dx * dy
-                    if power > 0:
+                    if j > last[p] or G > ONE:
                         continue
                     og = o * G
                     alpha = min(og, AMAX)
@@ -327,6 +319,7 @@ def raster_bwd(mean2d, conic, depth, opac, m2s, colors, ext, isect, offsets, W, 
                     if og <= AMAX:  # a clamped alpha has no gradient
                         s_o += G * dal
                         dp = og * dal  # dL/dpower
+                        dx = centre[u] - mx
                         s_mx += dp * (ca * dx + cb * dy)
                         s_my += dp * (cb * dx + cc * dy)
                         s_a -= HALF * dp * dx * dx
