@@ -548,6 +548,8 @@ class Renderer:
         supersample: samples per pixel along each axis (``ss x ss`` per pixel).
         jitter: jitter samples inside their strata (fixed pattern).
         lod_bias: added to the mip level (negative = sharper, positive = blurrier).
+        cull: cull objects per screen tile (off = test every object for every ray; same
+            image, slower; for checking the culling).
     """
 
     def __init__(
@@ -557,8 +559,10 @@ class Renderer:
         supersample: int = 2,
         jitter: bool = True,
         lod_bias: float = 0.0,
+        cull: bool = True,
     ) -> None:
         self.scene = scene
+        self.cull = cull
         self.intrinsics = intrinsics
         self.supersample = supersample
         self.lod_bias = float(lod_bias)
@@ -583,10 +587,15 @@ class Renderer:
         origin = np.ascontiguousarray(pose[:3, 3])
         rot_cw = np.ascontiguousarray(rot_wc.T)
         t_cw = -rot_cw @ origin
-        bin_objects(
-            rot_cw, t_cw, sc.object_bounds, k.fx, k.fy, k.cx, k.cy, k.width, k.height,
-            self._tlist, self._tcount,
-        )  # fmt: skip
+        if self.cull:
+            bin_objects(
+                rot_cw, t_cw, sc.object_bounds, k.fx, k.fy, k.cx, k.cy, k.width, k.height,
+                self._tlist, self._tcount,
+            )  # fmt: skip
+        else:
+            n_obj = len(sc.objects)
+            self._tlist[:, :, :n_obj] = np.arange(n_obj)[None, None, :]
+            self._tcount[:] = n_obj
         rgb = np.empty((k.height, k.width, 3), np.float32)
         depth = np.empty((k.height, k.width), np.float32)
         code = np.empty((k.height, k.width), np.int64)
