@@ -42,6 +42,16 @@ BUILTIN_SEQUENCES: dict[str, BuiltinSequence] = {
                                      speed=1.5, seed=1, exposure_ms=1.0),
     "demo": BuiltinSequence("office", "short low-resolution blurred sequence for `make demo`",
                             frames=40, width=224, height=128, speed=1.5, seed=7),
+    # small variants (224x128, 40 frames) for CPU accuracy benchmarks
+    "demo-sharp": BuiltinSequence("office", "demo's motion with a 1 ms exposure (no blur)",
+                                  frames=40, width=224, height=128, speed=1.5, seed=7,
+                                  exposure_ms=1.0),
+    "livingroom-s": BuiltinSequence("livingroom", "small living room sequence, strong blur",
+                                    frames=40, width=224, height=128, speed=1.5, seed=8),
+    "studio-s": BuiltinSequence("studio", "small studio sequence, strong blur", frames=40,
+                                width=224, height=128, speed=1.5, seed=9),
+    "corridor-s": BuiltinSequence("corridor", "small corridor sequence, strong blur", frames=40,
+                                  width=224, height=128, speed=1.5, seed=10),
 }
 
 
