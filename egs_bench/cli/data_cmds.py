@@ -49,3 +49,20 @@ def show(
         raise ConfigError(f"--frame {frame} out of range: {seq} has {len(sequence)} frames")
     save_frame_panel(sequence, frame, out)
     Console().print(f"wrote {out}")
+
+
+@app.command("demo")
+def demo(
+    out: Path = typer.Option(Path("demo_out"), "--out", "-o",
+                             help="Folder for the demo's runs, plots and frame panel."),
+    sequence: str = typer.Option("demo", "--seq", "-s",
+                                 help="Sequence name or folder (built-in names are generated "
+                                      "under $EGS_BENCH_DATA, default ./data, on first use)."),
+    preset: str = typer.Option("cpu", "--preset", help="SLAM configuration preset."),
+) -> None:
+    """End-to-end demo: blurred synthetic sequence -> egs and monogs -> metrics -> leaderboard."""
+    from egs_bench.demo import run_demo
+
+    console = Console()
+    run_demo(out, sequence=sequence, preset=preset,
+             say=lambda text: console.print(text, markup=False, highlight=False))
