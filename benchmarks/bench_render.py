@@ -109,8 +109,8 @@ def _rss_mb() -> float:
 
 def peak_rss_child(impl: str, size: str, k: int) -> float:
     """Peak RSS increase (MiB) of two fwd+bwd calls of ``impl``, measured in a fresh process
-    (``ru_maxrss`` after minus the RSS just before the first call; kernels load from the numba
-    cache), so that memory freed by earlier cases cannot hide it."""
+    (``ru_maxrss`` after minus the RSS just before the first call, after a tiny warm-up render
+    that loads the kernels), so that memory freed by earlier cases cannot hide it."""
     import subprocess
 
     out = subprocess.run([sys.executable, __file__, "--peak-child", impl, size, str(k)],
@@ -123,6 +123,10 @@ def _peak_child(impl: str, size: str, k: int) -> None:
 
     w, h, f = SIZES[size]
     fn = ours if impl == "ours" else make_proto()
+    # A tiny render first loads the compiled kernels (numba cache, llvmlite), so the peak below
+    # is the memory of rendering itself, not of loading code.
+    tiny = with_grads(make_scene(16, 32, 32, 30.0, 1), "fwd+bwd")
+    task(fn, tiny, 32, 32, "fwd+bwd")()
     p = with_grads(make_scene(N_GAUSSIANS, w, h, f, k), "fwd+bwd")
     run = task(fn, p, w, h, "fwd+bwd")
     base = _rss_mb()
