@@ -114,6 +114,18 @@ class GaussianMap:
         return rasterize(self.means, self.quats, self.scales, self.opacities, self.colors,
                          viewmats, Ks, width, height, **kwargs)  # type: ignore[arg-type]
 
+    def to(self, device: str | torch.device | None = None, dtype: torch.dtype | None = None
+           ) -> GaussianMap:
+        """A detached copy on ``device`` with float tensors in ``dtype`` (ids stay int64)."""
+        def conv(t: torch.Tensor) -> torch.Tensor:
+            return t.detach().to(device=device, dtype=dtype).clone()
+        return GaussianMap(*(conv(getattr(self, n)) for n in PARAM_NAMES),
+                           self.keyframe_ids.detach().to(device=device).clone())
+
+    def clone(self) -> GaussianMap:
+        """A detached copy."""
+        return self.to()
+
     # ---------------------------------------------------------------- editing
     def append(self, other: GaussianMap) -> None:
         """Append the Gaussians of ``other`` (new tensors; rebuild optimiser state after)."""

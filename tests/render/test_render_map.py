@@ -146,3 +146,16 @@ def test_demo_render_writes_png(tmp_path):
     assert img.shape == (40, 64 * 4 + 12, 3) and len(gmap) > 500
     # the re-render of the input view resembles the input (mean abs error of 8-bit sRGB)
     assert np.abs(img[:, :64].astype(float) - img[:, 68:132]).mean() < 25
+
+
+def test_clone_and_to_are_detached_copies():
+    rgb, depth, intr = _plane()
+    m = GaussianMap.empty()
+    m.add_from_depth(rgb, depth, intr, np.eye(4), downsample=4, keyframe_id=2)
+    m.requires_grad_()
+    c = m.to(dtype=torch.float64)
+    assert c.means.dtype == torch.float64 and not c.means.requires_grad
+    assert c.keyframe_ids.dtype == torch.int64 and (c.keyframe_ids == 2).all()
+    d = m.clone()
+    d.means.add_(1.0)
+    assert not torch.equal(d.means, m.means.detach())
