@@ -13,7 +13,11 @@ and the peak resident-memory increase of fwd+bwd calls (measured in a fresh proc
 both see the same machine load; the ratio column is prototype / ours (> 1: we are faster).
 Without ``../shared`` the prototype columns are skipped.
 
+With ``--gsplat`` (GPU machines) the gsplat backend is timed on CUDA tensors for the same cases
+(with ``torch.cuda.synchronize()``); its memory is not measured here.
+
 usage: NUMBA_CACHE_DIR=.cache/numba python benchmarks/bench_render.py [--runs 7] [--quick]
+       [--no-timing] [--gsplat]
 """
 
 from __future__ import annotations
@@ -85,6 +89,14 @@ def ours(p: dict, width: int, height: int) -> tuple[torch.Tensor, ...]:
     return out.rgb, out.depth, out.alpha
 
 
+def gsplat_impl(p: dict, width: int, height: int) -> tuple[torch.Tensor, ...]:
+    """The same render through the gsplat CUDA backend (``p`` holds CUDA tensors)."""
+    out = rasterize(p["means"], p["quats"], torch.exp(p["log_scales"]),
+                    torch.sigmoid(p["opacity_logits"]), p["colors"], p["viewmats"], p["Ks"],
+                    width, height, backend="gsplat")
+    return out.rgb, out.depth, out.alpha
+
+
 def make_proto() -> Callable | None:
     if not PROTO_DIR.is_dir():
         return None
@@ -136,15 +148,19 @@ def _peak_child(impl: str, size: str, k: int) -> None:
 
 
 def task(impl: Callable, p: dict, width: int, height: int, mode: str) -> Callable[[], None]:
+    cuda = p["means"].is_cuda
+
     def run() -> None:
         if mode == "fwd":
             with torch.no_grad():
                 impl(p, width, height)
-            return
-        rgb, dep, alpha = impl(p, width, height)
-        (rgb.mean() + dep.mean() + alpha.mean()).backward()
-        for v in p.values():
-            v.grad = None
+        else:
+            rgb, dep, alpha = impl(p, width, height)
+            (rgb.mean() + dep.mean() + alpha.mean()).backward()
+            for v in p.values():
+                v.grad = None
+        if cuda:
+            torch.cuda.synchronize()
 
     return run
 
@@ -164,6 +180,8 @@ def main() -> None:
     ap.add_argument("--runs", type=int, default=7, help="timed calls per implementation and case")
     ap.add_argument("--quick", action="store_true", help="only 224x128, K=5")
     ap.add_argument("--no-timing", action="store_true", help="only the peak-memory columns")
+    ap.add_argument("--gsplat", action="store_true",
+                    help="also time backend='gsplat' on CUDA tensors (needs a GPU and gsplat)")
     ap.add_argument("--peak-child", nargs=3, metavar=("IMPL", "SIZE", "K"), help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.peak_child:
@@ -186,6 +204,10 @@ def main() -> None:
                 continue
             p = with_grads(base, mode)
             runs = {name: task(fn, p, w, h, mode) for name, fn in impls.items()}
+            if args.gsplat:
+                pc = {key: v.detach().cuda().requires_grad_(v.requires_grad)
+                      for key, v in p.items()}
+                runs["gsplat"] = task(gsplat_impl, pc, w, h, mode)
             med = {name: float("nan") for name in runs}
             if not args.no_timing:
                 for fn in runs.values():  # compile / warm up
@@ -200,9 +222,11 @@ def main() -> None:
                 med = {name: statistics.median(v) for name, v in times.items()}
             mem = {}
             if mode == "fwd+bwd":
-                mem = {name: peak_rss_child(name, size, k) for name in runs}
+                mem = {name: peak_rss_child(name, size, k) for name in runs if name != "gsplat"}
             row = {"size": size, "K": k, "mode": mode, "ours_ms": med["ours"],
                    "ours_peak_MiB": mem.get("ours")}
+            if args.gsplat:
+                row["gsplat_ms"] = med["gsplat"]
             if proto:
                 row |= {"proto_ms": med["proto"], "proto_peak_MiB": mem.get("proto"),
                         "ratio": med["proto"] / med["ours"]}
