@@ -38,6 +38,9 @@ TILE = 16
 _EPS_T = 1e-9
 KIND_FACE, KIND_SPHERE, KIND_CYL_SIDE, KIND_CYL_CAP = 0, 1, 2, 3
 _MIN_COS = 0.15  # caps the footprint growth at grazing angles (limits over-blur)
+# The per-ray helpers are inlined and allocate nothing; they are compiled with ``_nrt=False``
+# because otherwise numba emits atomic reference-count updates for the ~20 scene arrays at every
+# inlined call, which cost ~100 ns per ray (measured: tracing 10x slower, rendering 1.6x).
 
 
 @njit(cache=True)
@@ -92,7 +95,7 @@ def bin_objects(
                 out_count[ty, tx] += 1
 
 
-@njit(cache=True, inline="always", fastmath=True)
+@njit(cache=True, inline="always", fastmath=True, _nrt=False)
 def _trace(ox, oy, oz, dx, dy, dz, room, boxes, spheres, cylinders, objects, tlist, ty, tx, tcount):
     """Nearest hit of ray ``o + t d`` (t > 0): returns ``(t, kind, index)``.
 
@@ -123,28 +126,41 @@ def _trace(ox, oy, oz, dx, dy, dz, room, boxes, spheres, cylinders, objects, tli
         if okind == OBJ_BOX:
             rx, ry, rz = ox - boxes[i, 0], oy - boxes[i, 1], oz - boxes[i, 2]
             c, s = boxes[i, 3], boxes[i, 4]
-            lo = (c * rx + s * ry, -s * rx + c * ry, rz)
-            ld = (c * dx + s * dy, -s * dx + c * dy, dz)
+            # Slab test in the box frame, axis by axis (unrolled: no tuples in the hot loop).
             tnear, tfar = -1e30, 1e30
-            near_axis, near_neg = 0, 0
-            miss = False
-            for a in range(3):
-                h = boxes[i, 5 + a]
-                if abs(ld[a]) < 1e-15:
-                    if abs(lo[a]) > h:
-                        miss = True
-                        break
-                    continue
-                t1 = (-h - lo[a]) / ld[a]
-                t2 = (h - lo[a]) / ld[a]
+            face = -1
+            lo_a, ld_a, h = c * rx + s * ry, c * dx + s * dy, boxes[i, 5]
+            if ld_a != 0.0:
+                t1, t2 = (-h - lo_a) / ld_a, (h - lo_a) / ld_a
                 if t1 > t2:
                     t1, t2 = t2, t1
                 if t1 > tnear:
-                    tnear, near_axis, near_neg = t1, a, 1 if ld[a] < 0.0 else 0
-                if t2 < tfar:
-                    tfar = t2
-            if not miss and tnear <= tfar and _EPS_T < tnear < best_t:
-                best_t, kind, index = tnear, KIND_FACE, 6 + 6 * i + 2 * near_axis + near_neg
+                    tnear, face = t1, 1 if ld_a < 0.0 else 0
+                tfar = min(tfar, t2)
+            elif abs(lo_a) > h:
+                continue
+            lo_a, ld_a, h = -s * rx + c * ry, -s * dx + c * dy, boxes[i, 6]
+            if ld_a != 0.0:
+                t1, t2 = (-h - lo_a) / ld_a, (h - lo_a) / ld_a
+                if t1 > t2:
+                    t1, t2 = t2, t1
+                if t1 > tnear:
+                    tnear, face = t1, 3 if ld_a < 0.0 else 2
+                tfar = min(tfar, t2)
+            elif abs(lo_a) > h:
+                continue
+            lo_a, ld_a, h = rz, dz, boxes[i, 7]
+            if ld_a != 0.0:
+                t1, t2 = (-h - lo_a) / ld_a, (h - lo_a) / ld_a
+                if t1 > t2:
+                    t1, t2 = t2, t1
+                if t1 > tnear:
+                    tnear, face = t1, 5 if ld_a < 0.0 else 4
+                tfar = min(tfar, t2)
+            elif abs(lo_a) > h:
+                continue
+            if face >= 0 and tnear <= tfar and _EPS_T < tnear < best_t:
+                best_t, kind, index = tnear, KIND_FACE, 6 + 6 * i + face
         elif okind == OBJ_SPHERE:
             rx, ry, rz = ox - spheres[i, 0], oy - spheres[i, 1], oz - spheres[i, 2]
             qa = dx * dx + dy * dy + dz * dz
@@ -168,17 +184,17 @@ def _trace(ox, oy, oz, dx, dy, dz, room, boxes, spheres, cylinders, objects, tli
                     z = oz + t * dz
                     if _EPS_T < t < best_t and z0 <= z <= z1:
                         best_t, kind, index = t, KIND_CYL_SIDE, i
-            if abs(dz) > 1e-15:
-                for zc in (z0, z1):
-                    t = (zc - oz) / dz
-                    if _EPS_T < t < best_t:
-                        hx, hy = rx + t * dx, ry + t * dy
-                        if hx * hx + hy * hy <= r * r:
-                            best_t, kind, index = t, KIND_CYL_CAP, i
+            if dz != 0.0:
+                # Only the cap facing the ray can be its first hit.
+                t = ((z1 if dz < 0.0 else z0) - oz) / dz
+                if _EPS_T < t < best_t:
+                    hx, hy = rx + t * dx, ry + t * dy
+                    if hx * hx + hy * hy <= r * r:
+                        best_t, kind, index = t, KIND_CYL_CAP, i
     return best_t, kind, index
 
 
-@njit(cache=True, fastmath=True)
+@njit(cache=True, fastmath=True, _nrt=False)
 def _bilinear(texels, base, size, u, v, wrap_u, wrap_v):
     x = u * size - 0.5
     y = v * size - 0.5
@@ -217,7 +233,7 @@ def _bilinear(texels, base, size, u, v, wrap_u, wrap_v):
     return r, g, b
 
 
-@njit(cache=True, inline="always", fastmath=True)
+@njit(cache=True, inline="always", fastmath=True, _nrt=False)
 def sample_texture(texels, tex_off, tex_size, tex, u, v, lod, wrap_u, wrap_v):
     """Trilinear (mip-mapped) lookup of texture ``tex`` at ``(u, v)`` (1 = one texture width),
     level of detail ``lod`` (0 = full resolution). Returns linear ``(r, g, b)``."""
@@ -239,7 +255,7 @@ def sample_texture(texels, tex_off, tex_size, tex, u, v, lod, wrap_u, wrap_v):
     return r, g, b
 
 
-@njit(cache=True, inline="always", fastmath=True)
+@njit(cache=True, inline="always", fastmath=True, _nrt=False)
 def _face_coords(px, py, pz, f, faces):
     """Face coordinates ``(s, r)`` (metres) of point ``p`` on face row ``f``."""
     qx, qy, qz = px - faces[f, 0], py - faces[f, 1], pz - faces[f, 2]
@@ -248,7 +264,7 @@ def _face_coords(px, py, pz, f, faces):
     return s, r
 
 
-@njit(cache=True, inline="always", fastmath=True)
+@njit(cache=True, inline="always", fastmath=True, _nrt=False)
 def _decal_at(ox, oy, oz, dx, dy, dz, t, kind, index, faces, decal_rect, fd_start, fd_count):
     """Index of the decal seen at hit ``(t, kind, index)`` of ray ``o + t d``, or -1.
 
@@ -265,7 +281,7 @@ def _decal_at(ox, oy, oz, dx, dy, dz, t, kind, index, faces, decal_rect, fd_star
     return top
 
 
-@njit(cache=True, inline="always", fastmath=True)
+@njit(cache=True, inline="always", fastmath=True, _nrt=False)
 def _shade(
     ox, oy, oz, dx, dy, dz, t, kind, index, decal, pix_ang, lod_bias,
     faces, face_mat, decal_rect, decal_mat, spheres, sphere_mat,
@@ -383,7 +399,7 @@ def _shade(
     return cr * ir + er, cg * ig + eg, cb * ib + eb
 
 
-@njit(cache=True, fastmath=True)
+@njit(cache=True, fastmath=True, _nrt=False)
 def _primary_row(
     v, rot_wc, origin, fx, fy, cx, cy, tlist, tcount, room, faces, decal_rect, fd_start,
     fd_count, boxes, spheres, cylinders, objects, out_depth, out_code,
@@ -412,7 +428,7 @@ def _primary_row(
         out_code[v, u] = (kind << 40) | (index << 20) | (decal + 1)
 
 
-@njit(cache=True, fastmath=True)
+@njit(cache=True, fastmath=True, _nrt=False)
 def _shade_row(
     v, rot_wc, origin, fx, fy, cx, cy, offsets, tlist, tcount, lod_bias,
     room, faces, face_mat, decal_rect, decal_mat, fd_start, fd_count, boxes, spheres, sphere_mat,
