@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import torch
@@ -12,6 +13,9 @@ import torch.nn.functional as F
 from scipy.spatial import cKDTree
 
 from egs_bench.geometry import Intrinsics
+
+if TYPE_CHECKING:
+    from egs_bench.render.rasterize import RasterResult
 
 PARAM_NAMES = ("means", "quats", "log_scales", "opacity_logits", "colors")
 
@@ -106,7 +110,7 @@ class GaussianMap:
         width: int,
         height: int,
         **kwargs: object,
-    ):  # -> RasterResult (import kept local to avoid a cycle)
+    ) -> RasterResult:
         """``rasterize`` this map into cameras ``viewmats`` [C,4,4] (world-to-camera) with
         intrinsics ``Ks`` [C,3,3]; ``kwargs`` go to :func:`egs_bench.render.rasterize`."""
         from egs_bench.render.rasterize import rasterize
