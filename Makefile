@@ -7,6 +7,7 @@ STAMP := $(VENV)/.setup-stamp
 export NUMBA_CACHE_DIR := $(CURDIR)/.cache/numba
 export EGS_BENCH_CACHE := $(CURDIR)/.cache/egs_bench
 export MPLBACKEND := Agg
+export OMP_WAIT_POLICY := PASSIVE
 
 .PHONY: setup demo test lint bench clean
 

@@ -12,6 +12,8 @@ REPO_ROOT = Path(__file__).resolve().parents[1]
 SHARED = REPO_ROOT.parent / "shared"
 os.environ.setdefault("NUMBA_CACHE_DIR", str(REPO_ROOT / ".cache" / "numba"))
 os.environ.setdefault("MPLBACKEND", "Agg")
+# torch's and numba's OpenMP pools otherwise spin-wait and steal each other's 2 cores
+os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 
 @pytest.fixture(scope="session")

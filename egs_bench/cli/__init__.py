@@ -6,7 +6,14 @@ Each area registers its commands on :data:`egs_bench.cli.app.app` from its own m
 from __future__ import annotations
 
 import importlib
+import os
 import sys
+
+# Before torch/numba load: their OpenMP pools otherwise spin-wait and steal each other's cores
+# (measured 4x slower rendering on 2 cores), and compiled numba kernels are cached.
+os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+os.environ.setdefault("NUMBA_CACHE_DIR",
+                      os.path.join(os.path.expanduser("~"), ".cache", "egs_bench", "numba"))
 
 from rich.console import Console
 
