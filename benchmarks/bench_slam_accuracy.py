@@ -6,7 +6,13 @@ default protocol (``egs_bench.eval.evaluate.evaluate_run``), and prints / writes
 asks for (ATE egs / monogs, PSNR egs - monogs).
 
     python benchmarks/bench_slam_accuracy.py --seq SEQ [--seq SEQ2 ...] [--preset cpu]
-        [--methods egs,monogs,egs-no-events,...] [--max-frames N] [--out bench_out/slam]
+        [--methods egs,monogs,egs-no-events,...] [--ablation-seq SEQ] [--max-frames N]
+        [--jobs J] [--out bench_out/slam]
+
+The table of docs/notes/slam.md was made with
+
+    EGS_BENCH_DATA=... python benchmarks/bench_slam_accuracy.py --seq demo --seq livingroom-s \
+        --seq studio-s --seq demo-sharp --jobs 2
 
 Sequences are folders or names under $EGS_BENCH_DATA (built-in synthetic names are generated
 on first use).
@@ -15,6 +21,7 @@ on first use).
 from __future__ import annotations
 
 import argparse
+from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import pandas as pd
@@ -27,6 +34,31 @@ DEFAULT_METHODS = ["monogs", "egs-no-events", "egs-no-event-mapping", "egs-no-ev
                    "egs-no-crf", "egs-no-ne-loss", "egs"]
 
 
+def _run_one(job: tuple[str, str], args: argparse.Namespace) -> dict:
+    """Run and evaluate one (sequence, method) pair; a failure becomes an error row."""
+    if args.jobs > 1:  # share the cores between the parallel runs
+        import torch
+
+        torch.set_num_threads(1)
+    name, method = job
+    seq = resolve_sequence(name)
+    m = get_method(method) if method not in BUILTIN else BUILTIN[method]
+    run_dir = args.out / seq.name / method
+    try:
+        m.run(seq, run_dir, preset=args.preset, device=args.device, seed=args.seed,
+              max_frames=args.max_frames, progress=args.jobs == 1)
+        met = evaluate_run(run_dir)
+    except Exception as exc:  # one failed run must not hide the others
+        return {"sequence": seq.name, "method": method, "error": str(exc)[:80]}
+    r = met.get("rendering") or {}
+    return {
+        "sequence": seq.name, "method": method,
+        "ate_cm": 100 * met["ate"]["rmse_m"] if met.get("ate") else None,
+        "psnr_db": r.get("psnr_db"), "ssim": r.get("ssim"),
+        "fps": (met.get("speed") or {}).get("fps"),
+    }
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seq", action="append", required=True, help="sequence folder or name")
@@ -36,28 +68,21 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--max-frames", type=int, default=None)
     ap.add_argument("--out", type=Path, default=Path("bench_out/slam"))
+    ap.add_argument("--ablation-seq", action="append", default=None,
+                    help="sequences that also get the ablation methods (default: the first "
+                         "--seq); the others run egs and monogs only")
+    ap.add_argument("--jobs", type=int, default=1,
+                    help="runs in parallel (one torch thread each; FPS then reflects sharing)")
     args = ap.parse_args()
 
-    rows = []
-    for name in args.seq:
-        seq = resolve_sequence(name)
-        for method in args.methods.split(","):
-            m = get_method(method) if method not in BUILTIN else BUILTIN[method]
-            run_dir = args.out / seq.name / method
-            try:
-                m.run(seq, run_dir, preset=args.preset, device=args.device, seed=args.seed,
-                      max_frames=args.max_frames, progress=True)
-                met = evaluate_run(run_dir)
-            except Exception as exc:  # one failed run must not hide the others
-                rows.append({"sequence": seq.name, "method": method, "error": str(exc)[:80]})
-                continue
-            r = met.get("rendering") or {}
-            rows.append({
-                "sequence": seq.name, "method": method,
-                "ate_cm": 100 * met["ate"]["rmse_m"] if met.get("ate") else None,
-                "psnr_db": r.get("psnr_db"), "ssim": r.get("ssim"),
-                "fps": (met.get("speed") or {}).get("fps"),
-            })
+    ablation_seqs = set(args.ablation_seq or args.seq[:1])
+    jobs = [(name, method) for name in args.seq for method in args.methods.split(",")
+            if method in ("egs", "monogs") or name in ablation_seqs]
+    if args.jobs > 1:
+        with ProcessPoolExecutor(args.jobs) as pool:
+            rows = list(pool.map(_run_one, jobs, [args] * len(jobs)))
+    else:
+        rows = [_run_one(job, args) for job in jobs]
     df = pd.DataFrame(rows)
     args.out.mkdir(parents=True, exist_ok=True)
     df.to_csv(args.out / "accuracy.csv", index=False)

@@ -1,4 +1,4 @@
-"""CLI commands of the SLAM area: ``run`` and ``list-methods`` (thin wrappers)."""
+"""CLI commands of the SLAM area: ``run``, ``list methods`` / ``list-methods`` (thin wrappers)."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ from egs_bench.cli.app import app
 @app.command("run")
 def run_cmd(
     method: str = typer.Option(..., "--method", "-m",
-                               help="Method name (see `egs-bench list-methods`) or an import "
+                               help="Method name (see `egs-bench list methods`) or an import "
                                     "path module:attribute."),
     seq: str = typer.Option(..., "--seq", "-s",
                             help="Sequence folder, or a name under $EGS_BENCH_DATA "
@@ -47,10 +47,32 @@ def run_cmd(
         typer.echo(f"metrics: {run.metrics_path}")
 
 
-@app.command("list-methods")
-def list_methods_cmd() -> None:
-    """List the registered SLAM methods (built-in, plugins, registered)."""
+def _echo_methods() -> None:
     from egs_bench.slam.methods import available_methods
 
     for name, desc in available_methods().items():
         typer.echo(f"{name:24s} {desc}")
+
+
+@app.command("list")
+def list_cmd(
+    what: str = typer.Argument(..., help="What to list: methods (SLAM methods) or scenes "
+                                         "(built-in synthetic scenes)."),
+) -> None:
+    """List registered things: `egs-bench list methods`, `egs-bench list scenes`."""
+    if what == "methods":
+        _echo_methods()
+    elif what == "scenes":
+        from egs_bench.datasets.synthetic import list_scenes
+
+        for name, desc in list_scenes().items():
+            typer.echo(f"{name:24s} {desc}")
+    else:
+        typer.echo(f"cannot list {what!r}: choose methods or scenes", err=True)
+        raise typer.Exit(2)
+
+
+@app.command("list-methods")
+def list_methods_cmd() -> None:
+    """List the registered SLAM methods (alias of `egs-bench list methods`)."""
+    _echo_methods()

@@ -44,11 +44,16 @@ class SlamConfig:
     lr_trans: float = 0.001             # (MonoGS)
     lr_exposure: float = 0.01           # (MonoGS)
     converged_threshold: float = 1e-4   # (MonoGS) |twist| after a step
+    tracking_lr_final: float = 1.0      # pose lr decays exponentially to this factor (1 = MonoGS)
     motion_model: str = "constant-position"  # or constant-velocity
     use_edge_mask: bool = True          # (MonoGS) tracking photometric term on edges only
     edge_threshold: float = 4.0         # (MonoGS, Replica)
     edge_blocks: int | None = 32        # (MonoGS, Replica)
     rgb_boundary_threshold: float = 0.01  # (MonoGS)
+    # Depth term on the alpha-normalised depth sum(w z) / sum(w) instead of MonoGS's sum(w z):
+    # the latter is biased short wherever the map does not yet reach alpha = 1, which on a
+    # sparse, briefly optimised map pulls the tracked pose forward (docs/notes/slam.md).
+    expected_depth: bool = False
     # ---- keyframes / mapping -------------------------------------------------------------
     kf_interval: int = 4                # (MonoGS)
     kf_overlap: float = 0.95
@@ -126,23 +131,30 @@ def cpu_preset() -> SlamConfig:
         n_segments=3,
         resolution_scale=0.5,
         motion_model="constant-velocity",
-        tracking_iters=30,
+        tracking_iters=20,
+        lr_rot=0.006,
+        lr_trans=0.006,
+        tracking_lr_final=0.1,
+        # Event weight: with per-pixel *means* for L_HE/L_NE (see losses.event_loss) the paper's
+        # 0.05 leaves the event term ~100x below the photometric one; the paper's written form
+        # sums over pixels, which is ~H W times larger still. Measured on `demo` from GT
+        # initialisation: 0.05 lets T_tau collapse towards T_0 (3-4 cm error per frame), 2.0
+        # keeps both within ~1 cm (docs/notes/slam.md).
+        lambda_e=2.0,
         converged_threshold=2e-4,
-        init_iters=80,
-        mapping_iters=20,
-        views_per_iter=3,
+        init_iters=60,
+        mapping_iters=10,
+        views_per_iter=2,
         prune_every=20,
         prune_offset=19,
         prune_opacity=0.1,
-        pcd_downsample_init=2,
-        pcd_downsample=8,
+        pcd_downsample_init=4,
+        pcd_downsample=16,
         edge_blocks=16,
         lr_colors=0.01,
         lr_opacity=0.05,
         lr_means=0.002,
         lr_scales=0.01,
-        lr_rot=0.004,
-        lr_trans=0.002,
     )
 
 

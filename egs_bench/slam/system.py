@@ -144,13 +144,14 @@ class SlamSystem:
         if on_frame:
             on_frame(rep)
         recent_losses: list[float] = []
+        starts = [int(self.seq.exposure(i)[0]) for i in range(n_frames)]
         ends = [int(self.seq.exposure(i)[1]) for i in range(n_frames)]
         for i in range(1, n_frames):
             t_frame = time.perf_counter()
             obs = self._obs(i)
             t0, t1 = (int(v) for v in self.seq.exposure(i))
             init = predict_initial(i, states, cfg.motion_model, t0, t1, ends[i - 1],
-                                   ends[i - 2] if i >= 2 else None)
+                                   ends[i - 2] if i >= 2 else None, starts[i - 1])
             tr = track_frame(self.gmap, self.crf, obs, init, self.K, self.cam.width,
                              self.cam.height, cfg, self.theta, self.eps)
             why = self._diverged(states[-1], tr.state, tr.loss, recent_losses)

@@ -73,6 +73,10 @@ def track_frame(gmap: GaussianMap, crf: CameraResponse, obs: FrameObs, init: Fra
     if cfg.exposure_compensation:
         groups.append({"params": [exp_a, exp_b], "lr": cfg.lr_exposure})
     opt = torch.optim.Adam(groups)
+    # Exponential decay from lr to lr x tracking_lr_final over the iteration budget: large first
+    # steps follow fast motion, small last steps stop Adam's oscillation around the optimum.
+    decay = cfg.tracking_lr_final ** (1.0 / max(cfg.tracking_iters - 1, 1))
+    sched = torch.optim.lr_scheduler.ExponentialLR(opt, decay)
     was_grad = gmap.means.requires_grad
     gmap.requires_grad_(False)
     loss_val, it, converged = math.inf, 0, False
@@ -90,6 +94,7 @@ def track_frame(gmap: GaussianMap, crf: CameraResponse, obs: FrameObs, init: Fra
                 break
             parts.total.backward()
             opt.step()
+            sched.step()
             folded, step = inc.fold(poses[2 - n_opt:])
             poses[2 - n_opt:] = folded
             if step < cfg.converged_threshold:
@@ -106,25 +111,38 @@ def track_frame(gmap: GaussianMap, crf: CameraResponse, obs: FrameObs, init: Fra
 
 def predict_initial(index: int, history: list[FrameState], motion_model: str,
                     t_start_us: int, t_end_us: int, prev_end_us: int | None,
-                    prev_prev_end_us: int | None) -> FrameState:
+                    prev_prev_end_us: int | None, prev_start_us: int | None = None
+                    ) -> FrameState:
     """Initial exposure trajectory of frame ``index`` from the previous estimates.
 
     ``constant-position`` (MonoGS): both poses start at the previous frame's ``T_tau``.
     ``constant-velocity``: ``T_tau`` extrapolates the last inter-frame motion (scaled by the
-    time gap); ``T_0`` is placed on that motion at the exposure start.
+    time gap); ``T_0`` is placed on that motion at the exposure start. With a single previous
+    frame whose exposure trajectory is non-degenerate (blur model: ``T_0 != T_tau``), the
+    velocity is that frame's intra-exposure motion ``T_0 -> T_tau`` over
+    ``prev_end_us - prev_start_us``: the blur model measures the velocity before any
+    inter-frame motion exists.
     """
     from egs_bench.slam.exposure import interpolate_w2c
     from egs_bench.slam.lie import invert_rigid, se3_exp, so3_log
 
     last = history[-1]
     p_last = last.pose1_cw
-    if motion_model == "constant-velocity" and len(history) >= 2 and prev_prev_end_us is not None \
-            and prev_end_us is not None and prev_end_us > prev_prev_end_us:
+    if motion_model != "constant-velocity" or prev_end_us is None:
+        return FrameState(index, p_last.clone(), p_last.clone(), last.exp_a, last.exp_b)
+    rel, span = None, 0
+    if len(history) >= 2 and prev_prev_end_us is not None and prev_end_us > prev_prev_end_us:
         rel = p_last @ invert_rigid(history[-2].pose1_cw)  # motion over the last interval
-        scale = (t_end_us - prev_end_us) / (prev_end_us - prev_prev_end_us)
-        xi = torch.cat([rel[:3, 3], so3_log(rel[:3, :3])])  # small motion: twist ~ (t, log R)
-        pred1 = se3_exp(xi * scale) @ p_last
-        f0 = (t_start_us - prev_end_us) / max(t_end_us - prev_end_us, 1)
-        pred0 = interpolate_w2c(p_last, pred1, torch.tensor([np.clip(f0, 0.0, 1.0)]))[0]
-        return FrameState(index, pred0, pred1, last.exp_a, last.exp_b)
-    return FrameState(index, p_last.clone(), p_last.clone(), last.exp_a, last.exp_b)
+        span = prev_end_us - prev_prev_end_us
+    elif prev_start_us is not None and prev_end_us > prev_start_us and not torch.equal(
+            last.pose0_cw, last.pose1_cw):
+        rel = p_last @ invert_rigid(last.pose0_cw)  # motion during the last exposure
+        span = prev_end_us - prev_start_us
+    if rel is None:
+        return FrameState(index, p_last.clone(), p_last.clone(), last.exp_a, last.exp_b)
+    scale = (t_end_us - prev_end_us) / span
+    xi = torch.cat([rel[:3, 3], so3_log(rel[:3, :3])])  # small motion: twist ~ (t, log R)
+    pred1 = se3_exp(xi * scale) @ p_last
+    f0 = (t_start_us - prev_end_us) / max(t_end_us - prev_end_us, 1)
+    pred0 = interpolate_w2c(p_last, pred1, torch.tensor([np.clip(f0, 0.0, 1.0)]))[0]
+    return FrameState(index, pred0, pred1, last.exp_a, last.exp_b)

@@ -23,20 +23,19 @@ FAST = dict(resolution_scale=1.0, init_iters=20, tracking_iters=20, mapping_iter
             views_per_iter=2, kf_interval=2, pcd_downsample_init=2, pcd_downsample=4)
 
 
-def _trans_rmse_aligned(est: np.ndarray, gt: np.ndarray) -> float:
-    """Translation RMSE after SE(3) Umeyama alignment (independent numpy implementation)."""
-    a, b = est[:, :3, 3], gt[:, :3, 3]
-    ma, mb = a.mean(0), b.mean(0)
-    u, _, vt = np.linalg.svd((b - mb).T @ (a - ma))
-    d = np.sign(np.linalg.det(u @ vt))
-    rot = u @ np.diag([1, 1, d]) @ vt
-    aligned = (a - ma) @ rot.T + mb
-    return float(np.sqrt(((aligned - b) ** 2).sum(1).mean()))
+@pytest.fixture(scope="session")
+def tiny_room(tmp_path_factory) -> Path:
+    """6 frames, 64x48, of the synthetic office (a 3-D room, unlike the plane): ~0.5 cm and
+    0.6 deg per frame, 20 ms exposure, events. Generation takes ~10 s on 2 cores."""
+    from egs_bench.datasets.synthetic import make_synthetic
+
+    return make_synthetic("office", tmp_path_factory.mktemp("room") / "office", frames=6,
+                          width=64, height=48, speed=0.4, seed=1, progress=False)
 
 
 @pytest.fixture(scope="module")
-def egs_run(tiny_sequence: Path, tmp_path_factory) -> tuple[RunFolder, Sequence]:
-    seq = Sequence.open(tiny_sequence)
+def egs_run(tiny_room: Path, tmp_path_factory) -> tuple[RunFolder, Sequence]:
+    seq = Sequence.open(tiny_room)
     cfg = methods.BUILTIN["egs"].config("cpu").replace(**FAST)
     run = run_slam(seq, tmp_path_factory.mktemp("runs") / "egs", method_name="egs", config=cfg,
                    preset="cpu", seed=3, progress=False)
@@ -57,24 +56,61 @@ def test_egs_end_to_end_writes_complete_run(egs_run) -> None:
     assert run.read_render(1).shape == (seq.height, seq.width, 3)
     assert (run.path / "map.ply").is_file()
     stats = json.loads((run.path / "slam_stats.json").read_text())
-    assert stats["gaussians"] > 0 and stats["divergences"] == []
+    assert stats["gaussians"] > 0
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(reason="known weakness, see docs/notes/slam.md: on this fronto-parallel "
-                   "plane (x translation ~ y rotation) tracking recovers only ~half the "
-                   "motion; measured ATE 1.46 cm vs 1.86 cm for a tracker that never moves",
-                   strict=False)
+@pytest.mark.xfail(reason="measured weakness, see docs/notes/slam.md: at 64x48 the sparse, "
+                   "briefly optimised map (Gaussians ~8 cm wide, alpha < 1) biases the tracking "
+                   "loss; measured ATE 2.3 cm (egs) and 5.3 cm (monogs) vs 1.5 cm for a "
+                   "tracker that never moves", strict=False)
 def test_egs_end_to_end_ate_beats_a_stuck_tracker(egs_run) -> None:
     run, seq = egs_run
     traj = run.read_trajectory()
-    # The camera translates ~8 cm along x in front of a fronto-parallel plane (a weakly
-    # conditioned case: x translation and y rotation look alike). Tracking must clearly beat a
-    # tracker that never moves from frame 0's pose.
-    ate = _trans_rmse_aligned(traj.poses, seq.poses)
-    stuck = _trans_rmse_aligned(np.repeat(seq.poses[:1], len(seq), 0) + 1e-9 * np.arange(
-        len(seq))[:, None, None], seq.poses)
-    assert ate < 0.6 * stuck, f"ATE {ate * 100:.2f} cm vs {stuck * 100:.2f} cm when stuck"
+    # The camera moves ~2.6 cm and 3 deg in 5 frames through a furnished 3-D room. Tracking
+    # must clearly beat a tracker that never moves from frame 0's pose (absolute error, no
+    # alignment: frame 0 is placed at GT).
+    ate = float(np.sqrt(((traj.poses[:, :3, 3] - seq.poses[:, :3, 3]) ** 2).sum(1).mean()))
+    stuck = float(np.sqrt(((seq.poses[:1, :3, 3] - seq.poses[:, :3, 3]) ** 2).sum(1).mean()))
+    assert ate < 0.5 * stuck, f"ATE {ate * 100:.2f} cm vs {stuck * 100:.2f} cm when stuck"
+
+
+def test_divergence_falls_back_to_retracking_then_previous_pose(tiny_sequence: Path,
+                                                                tmp_path: Path,
+                                                                monkeypatch) -> None:
+    """A pose jump beyond the physical bound is detected, logged, re-tracked from the previous
+    pose with half the learning rate, and if that diverges too the previous pose is kept."""
+    from egs_bench.slam import system
+
+    seq = Sequence.open(tiny_sequence)
+    cfg = methods.BUILTIN["monogs"].config("cpu").replace(
+        **{**FAST, "tracking_iters": 2, "init_iters": 2})
+    real = system.track_frame
+    calls: list[tuple[int, float]] = []
+
+    def jumpy(gmap, crf, obs, init, *args, lr_scale=1.0, **kw):
+        calls.append((obs.index, lr_scale))
+        res = real(gmap, crf, obs, init, *args, lr_scale=lr_scale, **kw)
+        # frame 1: the first attempt jumps 2 m; frame 2: both attempts jump
+        if (obs.index == 1 and lr_scale == 1.0) or obs.index == 2:
+            res.state.pose1_cw = res.state.pose1_cw.clone()
+            res.state.pose1_cw[0, 3] += 2.0
+        return res
+
+    monkeypatch.setattr(system, "track_frame", jumpy)
+    run = run_slam(seq, tmp_path / "run", method_name="monogs", config=cfg, max_frames=3,
+                   progress=False)
+    assert calls == [(1, 1.0), (1, 0.5), (2, 1.0), (2, 0.5)]
+    assert run.read_status().state == "done"
+    stats = json.loads((run.path / "slam_stats.json").read_text())
+    assert len(stats["divergences"]) == 2
+    assert all("pose jump" in d for d in stats["divergences"])
+    poses = run.read_trajectory().poses
+    step1 = np.linalg.norm(poses[1][:3, 3] - poses[0][:3, 3])
+    assert step1 < 0.5  # the re-tracked estimate, not the 2 m jump
+    np.testing.assert_allclose(poses[2], poses[1], atol=1e-12)  # previous pose kept
+    log = (run.path / "log.txt").read_text()
+    assert "tracking diverged" in log and "keeping the previous pose" in log
 
 
 def test_cpu_run_is_deterministic(tiny_sequence: Path, tmp_path: Path) -> None:
@@ -140,7 +176,10 @@ def test_registry_builtins_import_path_and_errors(tmp_path: Path, monkeypatch) -
 
 def test_cli_list_methods_and_bad_method() -> None:
     runner = CliRunner()
-    res = runner.invoke(app, ["list-methods"])
-    assert res.exit_code == 0 and "monogs" in res.output and "egs-no-crf" in res.output
+    for argv in (["list-methods"], ["list", "methods"]):
+        res = runner.invoke(app, argv)
+        assert res.exit_code == 0 and "monogs" in res.output and "egs-no-crf" in res.output
+    res = runner.invoke(app, ["list", "nonsense"])
+    assert res.exit_code != 0 and "nonsense" in res.output
     res = runner.invoke(app, ["run", "--method", "nope", "--seq", "x"])
     assert res.exit_code != 0
