@@ -45,7 +45,10 @@ def test_open_reads_everything(tiny_sequence: Path) -> None:
     assert seq.poses.shape == (4, 4, 4)
     np.testing.assert_allclose(seq.timestamps_s, seq.t_end_us * 1e-6)
     assert seq.exposure_us == 15_000
-    assert seq.dense_trajectory is not None and len(seq.dense_trajectory) > 4 * 2
+    dense = seq.dense_trajectory
+    assert dense is not None  # every latent sample, exposure boundaries included
+    boundaries = np.concatenate([seq.t_start_us, seq.t_end_us]) * 1e-6
+    assert np.isin(np.round(boundaries, 6), np.round(dense.timestamps, 6)).all()
     assert len(seq.events) > 0
     seq.validate_contents()
 
