@@ -30,28 +30,28 @@ class BuiltinSequence:
 
 
 BUILTIN_SEQUENCES: dict[str, BuiltinSequence] = {
-    "office1": BuiltinSequence("office", "office, hand-held motion, strong blur", speed=1.5,
+    "office1": BuiltinSequence("office", "office, hand-held motion, strong blur", speed=0.75,
                                seed=1),
-    "office2": BuiltinSequence("office", "office, faster motion, very strong blur", speed=2.5,
+    "office2": BuiltinSequence("office", "office, faster motion, very strong blur", speed=1.5,
                                seed=2),
-    "livingroom1": BuiltinSequence("livingroom", "living room, strong blur", speed=1.5, seed=3),
-    "studio1": BuiltinSequence("studio", "studio with bright lamps, strong blur", speed=1.5,
+    "livingroom1": BuiltinSequence("livingroom", "living room, strong blur", speed=0.75, seed=3),
+    "studio1": BuiltinSequence("studio", "studio with bright lamps, strong blur", speed=0.75,
                                seed=4),
-    "corridor1": BuiltinSequence("corridor", "corridor, strong blur", speed=1.5, seed=5),
+    "corridor1": BuiltinSequence("corridor", "corridor, strong blur", speed=0.75, seed=5),
     "office1-sharp": BuiltinSequence("office", "office1's motion with a 1 ms exposure (no blur)",
-                                     speed=1.5, seed=1, exposure_ms=1.0),
+                                     speed=0.75, seed=1, exposure_ms=1.0),
     "demo": BuiltinSequence("office", "short low-resolution blurred sequence for `make demo`",
-                            frames=40, width=224, height=128, speed=1.5, seed=7),
+                            frames=40, width=224, height=128, speed=0.75, seed=7),
     # small variants (224x128, 40 frames) for CPU accuracy benchmarks
     "demo-sharp": BuiltinSequence("office", "demo's motion with a 1 ms exposure (no blur)",
-                                  frames=40, width=224, height=128, speed=1.5, seed=7,
+                                  frames=40, width=224, height=128, speed=0.75, seed=7,
                                   exposure_ms=1.0),
     "livingroom-s": BuiltinSequence("livingroom", "small living room sequence, strong blur",
-                                    frames=40, width=224, height=128, speed=1.5, seed=8),
+                                    frames=40, width=224, height=128, speed=0.75, seed=8),
     "studio-s": BuiltinSequence("studio", "small studio sequence, strong blur", frames=40,
-                                width=224, height=128, speed=1.5, seed=9),
+                                width=224, height=128, speed=0.75, seed=9),
     "corridor-s": BuiltinSequence("corridor", "small corridor sequence, strong blur", frames=40,
-                                  width=224, height=128, speed=1.5, seed=10),
+                                  width=224, height=128, speed=0.75, seed=10),
 }
 
 
