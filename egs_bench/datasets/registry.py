@@ -41,17 +41,20 @@ BUILTIN_SEQUENCES: dict[str, BuiltinSequence] = {
     "office1-sharp": BuiltinSequence("office", "office1's motion with a 1 ms exposure (no blur)",
                                      speed=0.75, seed=1, exposure_ms=1.0),
     "demo": BuiltinSequence("office", "short low-resolution blurred sequence for `make demo`",
-                            frames=40, width=224, height=128, speed=0.75, seed=7),
-    # small variants (224x128, 40 frames) for CPU accuracy benchmarks
+                            frames=40, width=224, height=128, speed=0.4, seed=7,
+                            exposure_ms=25.0),
+    # small variants (224x128, 40 frames, ~2-3 cm and <1 deg per frame, 25 ms exposure) for
+    # CPU accuracy benchmarks
     "demo-sharp": BuiltinSequence("office", "demo's motion with a 1 ms exposure (no blur)",
-                                  frames=40, width=224, height=128, speed=0.75, seed=7,
+                                  frames=40, width=224, height=128, speed=0.4, seed=7,
                                   exposure_ms=1.0),
-    "livingroom-s": BuiltinSequence("livingroom", "small living room sequence, strong blur",
-                                    frames=40, width=224, height=128, speed=0.75, seed=8),
-    "studio-s": BuiltinSequence("studio", "small studio sequence, strong blur", frames=40,
-                                width=224, height=128, speed=0.75, seed=9),
-    "corridor-s": BuiltinSequence("corridor", "small corridor sequence, strong blur", frames=40,
-                                  width=224, height=128, speed=0.75, seed=10),
+    "livingroom-s": BuiltinSequence("livingroom", "small living room sequence, blurred",
+                                    frames=40, width=224, height=128, speed=0.4, seed=8,
+                                    exposure_ms=25.0),
+    "studio-s": BuiltinSequence("studio", "small studio sequence, blurred", frames=40,
+                                width=224, height=128, speed=0.4, seed=9, exposure_ms=25.0),
+    "corridor-s": BuiltinSequence("corridor", "small corridor sequence, blurred", frames=40,
+                                  width=224, height=128, speed=0.4, seed=10, exposure_ms=25.0),
 }
 
 
