@@ -135,12 +135,6 @@ def cpu_preset() -> SlamConfig:
         lr_rot=0.006,
         lr_trans=0.006,
         tracking_lr_final=0.1,
-        # Event weight: with per-pixel *means* for L_HE/L_NE (see losses.event_loss) the paper's
-        # 0.05 leaves the event term ~100x below the photometric one; the paper's written form
-        # sums over pixels, which is ~H W times larger still. Measured on `demo` from GT
-        # initialisation: 0.05 lets T_tau collapse towards T_0 (3-4 cm error per frame), 2.0
-        # keeps both within ~1 cm (docs/notes/slam.md).
-        lambda_e=2.0,
         converged_threshold=2e-4,
         init_iters=60,
         mapping_iters=10,
