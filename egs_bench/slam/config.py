@@ -136,7 +136,11 @@ def cpu_preset() -> SlamConfig:
         lr_trans=0.006,
         tracking_lr_final=0.1,
         converged_threshold=2e-4,
-        init_iters=60,
+        init_iters=150,
+        # The sparse CPU map leaves alpha < 1 in many pixels, where the accumulated depth
+        # sum(w z) is far too short and pulls tracking forward; the alpha-normalised depth
+        # removed that bias (monogs on `demo`, 20 frames: ATE 10.1 -> 2.5 cm).
+        expected_depth=True,
         mapping_iters=10,
         views_per_iter=2,
         prune_every=20,
