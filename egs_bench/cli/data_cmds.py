@@ -65,4 +65,5 @@ def demo(
 
     console = Console()
     run_demo(out, sequence=sequence, preset=preset,
-             say=lambda text: console.print(text, markup=False, highlight=False))
+             say=lambda text: console.print(text, markup=False, highlight=False,
+                                            soft_wrap=True))
