@@ -35,6 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from egs_bench.datasets.color import LUMA_BT601
 from egs_bench.datasets.esim_kernels import (
     NEVER_FIRED_US,
     counting_sort_by_time,
@@ -44,7 +45,7 @@ from egs_bench.datasets.esim_kernels import (
 from egs_bench.datasets.events import Events
 from egs_bench.errors import ConfigError
 
-BT601_WEIGHTS = np.array([0.299, 0.587, 0.114], dtype=np.float64)
+BT601_WEIGHTS = np.array(LUMA_BT601, dtype=np.float64)
 MIN_THRESHOLD = 0.01  # lower clamp of the mismatch map (as v2e / rpg_esim)
 _MAX_SIZE = 2**16  # x, y are stored as uint16
 
