@@ -78,6 +78,8 @@ def main() -> None:
     ablation_seqs = set(args.ablation_seq or args.seq[:1])
     jobs = [(name, method) for name in args.seq for method in args.methods.split(",")
             if method in ("egs", "monogs") or name in ablation_seqs]
+    for name in args.seq:  # generate built-in sequences once, before parallel runs race on them
+        resolve_sequence(name)
     if args.jobs > 1:
         with ProcessPoolExecutor(args.jobs) as pool:
             rows = list(pool.map(_run_one, jobs, [args] * len(jobs)))
