@@ -33,9 +33,9 @@ def linear_to_srgb(linear: np.ndarray) -> np.ndarray:
 
 
 def luma(rgb_linear: np.ndarray) -> np.ndarray:
-    """BT.601 luma of linear RGB: [..., 3] -> [...]."""
-    r, g, b = LUMA_BT601
-    return r * rgb_linear[..., 0] + g * rgb_linear[..., 1] + b * rgb_linear[..., 2]
+    """BT.601 luma of linear RGB: [..., 3] -> [...] (dtype of the input, float)."""
+    rgb = np.asarray(rgb_linear)
+    return rgb @ np.asarray(LUMA_BT601, dtype=rgb.dtype if rgb.dtype.kind == "f" else np.float64)
 
 
 @dataclass(frozen=True)

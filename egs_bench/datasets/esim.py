@@ -35,7 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from egs_bench.datasets.color import LUMA_BT601
+from egs_bench.datasets.color import luma
 from egs_bench.datasets.esim_kernels import (
     NEVER_FIRED_US,
     counting_sort_by_time,
@@ -45,7 +45,6 @@ from egs_bench.datasets.esim_kernels import (
 from egs_bench.datasets.events import Events
 from egs_bench.errors import ConfigError
 
-BT601_WEIGHTS = np.array(LUMA_BT601, dtype=np.float64)
 MIN_THRESHOLD = 0.01  # lower clamp of the mismatch map (as v2e / rpg_esim)
 _MAX_SIZE = 2**16  # x, y are stored as uint16
 
@@ -104,7 +103,7 @@ def linear_luma(rgb_linear: np.ndarray) -> np.ndarray:
     rgb = np.asarray(rgb_linear)
     if rgb.ndim != 3 or rgb.shape[2] != 3:
         raise ValueError(f"expected an [H, W, 3] image, got shape {rgb.shape}")
-    return rgb.astype(np.float64, copy=False) @ BT601_WEIGHTS
+    return luma(rgb.astype(np.float64, copy=False))
 
 
 def log_luma(rgb_linear: np.ndarray, eps: float) -> np.ndarray:

@@ -26,6 +26,7 @@ from PIL import Image
 
 from egs_bench.datasets.events import EventStream, EventWriter
 from egs_bench.errors import InputError
+from egs_bench.fileio import to_plain
 from egs_bench.geometry import Intrinsics, Trajectory, read_tum, write_tum
 
 FORMAT_VERSION = 1
@@ -381,7 +382,7 @@ class SequenceWriter:
             write_tum(self.root / "groundtruth_dense.txt",
                       np.asarray(dense_times_us, dtype=np.int64) * 1e-6, dense_poses)
         self.meta["num_frames"] = len(self._rows)
-        (self.root / "meta.yaml").write_text(yaml.safe_dump(_plain(self.meta), sort_keys=False))
+        (self.root / "meta.yaml").write_text(yaml.safe_dump(to_plain(self.meta), sort_keys=False))
 
 
 def encode_depth(depth_m: np.ndarray, scale: float) -> np.ndarray:
@@ -389,18 +390,3 @@ def encode_depth(depth_m: np.ndarray, scale: float) -> np.ndarray:
     scaled = np.round(np.nan_to_num(np.asarray(depth_m, dtype=np.float64), nan=0.0) * scale)
     scaled[(scaled > 65535) | (scaled < 0)] = 0
     return scaled.astype(np.uint16)
-
-
-def _plain(value: Any) -> Any:
-    """Convert numpy scalars/arrays inside ``value`` to plain Python for YAML."""
-    if isinstance(value, dict):
-        return {str(k): _plain(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_plain(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    if isinstance(value, np.generic):
-        return value.item()
-    if isinstance(value, Path):
-        return str(value)
-    return value

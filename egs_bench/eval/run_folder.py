@@ -45,7 +45,7 @@ import yaml
 
 from egs_bench import __version__
 from egs_bench.errors import InputError
-from egs_bench.fileio import atomic_path, write_text_atomic
+from egs_bench.fileio import atomic_path, to_plain, write_text_atomic
 from egs_bench.geometry import Trajectory, read_tum, write_tum
 
 RUN_FILE = "run.yaml"
@@ -131,22 +131,7 @@ def _read_yaml(path: Path) -> dict[str, Any]:
 
 
 def _dump_yaml(data: Mapping[str, Any]) -> str:
-    return yaml.safe_dump(_plain(data), sort_keys=False, default_flow_style=False)
-
-
-def _plain(value: Any) -> Any:
-    """Convert numpy scalars/arrays and paths to plain YAML/JSON types."""
-    if isinstance(value, Mapping):
-        return {str(k): _plain(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_plain(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return _plain(value.tolist())
-    if isinstance(value, np.generic):
-        return value.item()
-    if isinstance(value, Path):
-        return str(value)
-    return value
+    return yaml.safe_dump(to_plain(data), sort_keys=False, default_flow_style=False)
 
 
 class RunFolder:
