@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import PlaneSource, make_plane_sequence
+from plane_scene import PlaneSource, make_plane_sequence
 
 from egs_bench.datasets.color import CameraResponse, linear_to_srgb, srgb_to_linear
 from egs_bench.datasets.esim import log_luma
