@@ -77,8 +77,17 @@ def depth_l1(pred: torch.Tensor, obs: torch.Tensor, mask: torch.Tensor) -> torch
 
 
 def min_depth_loss(pred: torch.Tensor, obs: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
-    """Paper's ``L_D = min_k ||D_obs - D(T(eta_k))||_1`` for rendered depths [M, H, W]."""
-    per_pose = (mask.to(pred.dtype)[None] * (pred - obs[None]).abs()).mean(dim=(1, 2))
+    """Paper's ``L_D = min_k ||D_obs - D(T(eta_k))||_1`` for rendered depths [M, H, W].
+
+    Args:
+        pred: rendered depth per sub-pose [M, H, W]. obs: observed depth [H, W].
+        mask: bool [H, W] (shared) or [M, H, W] (per sub-pose, e.g. rendered opacity > 0.95).
+    """
+    if mask.dim() == 2:
+        mask = mask[None]
+    if pred.dim() != 3 or mask.dim() != 3 or mask.shape[1:] != pred.shape[1:]:
+        raise ValueError(f"depth [M,H,W] {tuple(pred.shape)} and mask {tuple(mask.shape)} differ")
+    per_pose = (mask.to(pred.dtype) * (pred - obs[None]).abs()).mean(dim=(1, 2))  # [M]
     return per_pose.min()
 
 

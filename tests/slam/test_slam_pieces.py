@@ -137,6 +137,14 @@ def test_losses_against_hand_computation() -> None:
     dm = losses.depth_valid_mask(d_obs)
     # three valid pixels, per pose mean over 4 pixels: 1.5/4, 0.3/4, 0.9/4 -> min 0.075
     assert losses.min_depth_loss(d_pred, d_obs, dm).item() == pytest.approx(0.075)
+    # Per-sub-pose masks [M, H, W] (tracking: valid depth and rendered opacity > 0.95); here the
+    # second pose's pixel (0, 0) is masked: 0.2/4 for it, so the min is still 0.2/4 = 0.05.
+    per_pose = dm[None].repeat(3, 1, 1)
+    per_pose[1, 0, 0] = False
+    assert losses.min_depth_loss(d_pred, d_obs, per_pose).item() == pytest.approx(0.05)
+    assert losses.min_depth_loss(d_pred, d_obs, dm[None]).item() == pytest.approx(0.075)
+    with pytest.raises(ValueError):
+        losses.min_depth_loss(d_pred, d_obs, dm[:, :1])
 
     # Event maps: two renders of a 1x2 image with luma 0.5 -> 0.8 and 0.4 -> 0.4.
     eps = 1e-3
