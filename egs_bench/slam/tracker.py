@@ -37,14 +37,20 @@ class PoseIncrements:
         self.rho = torch.zeros(n, 3, dtype=dtype, device=device, requires_grad=True)
         self.theta = torch.zeros(n, 3, dtype=dtype, device=device, requires_grad=True)
 
-    def apply(self, poses_cw: torch.Tensor) -> torch.Tensor:
+    def twists(self, mask: torch.Tensor | None = None) -> torch.Tensor:
+        """Increments [n, 6] (rho, theta), times ``mask`` [n, 1] when given (0 = frozen)."""
+        xi = torch.cat([self.rho, self.theta], -1)
+        return xi if mask is None else xi * mask
+
+    def apply(self, poses_cw: torch.Tensor, mask: torch.Tensor | None = None) -> torch.Tensor:
         """``exp(xi_j) @ T_j`` for poses [n, 4, 4]."""
-        return se3_exp(torch.cat([self.rho, self.theta], -1)) @ poses_cw
+        return se3_exp(self.twists(mask)) @ poses_cw
 
     @torch.no_grad()
-    def fold(self, poses_cw: torch.Tensor) -> tuple[torch.Tensor, float]:
+    def fold(self, poses_cw: torch.Tensor, mask: torch.Tensor | None = None
+             ) -> tuple[torch.Tensor, float]:
         """Poses with the increments folded in, and the largest increment norm; zeros them."""
-        xi = torch.cat([self.rho, self.theta], -1)
+        xi = self.twists(mask)
         new = se3_exp(xi) @ poses_cw
         norm = float(xi.norm(dim=-1).max()) if xi.numel() else 0.0
         self.rho.zero_()
