@@ -30,6 +30,10 @@ class SlamConfig:
     crf: str = "learnable"              # learnable | srgb | identity
     crf_nodes: int = 16
     crf_alpha: float = 0.01             # (paper)
+    # Initial curve of the learnable CRF: "linear" (evenly spaced nodes, the identity; the paper
+    # does not say) or "srgb". Measured on `demo` (20 frames, cpu preset): the sRGB start
+    # tracked worse (docs/notes/slam.md, "CRF initialisation").
+    crf_init: str = "linear"
     exposure_compensation: bool = True  # per-frame exp(a) I + b (MonoGS)
     theta: float | None = None          # event threshold; None = the sequence's pos/neg values
     lambda_ne: float = 0.4              # (paper)
@@ -46,6 +50,9 @@ class SlamConfig:
     converged_threshold: float = 1e-4   # (MonoGS) |twist| after a step
     tracking_lr_final: float = 1.0      # pose lr decays exponentially to this factor (1 = MonoGS)
     motion_model: str = "constant-position"  # or constant-velocity
+    # Tracking estimates T_tau only and places T_0 on the path from the previous frame's T_tau
+    # (constant velocity over the frame interval) instead of estimating both freely (paper).
+    continuous_exposure: bool = False
     use_edge_mask: bool = True          # (MonoGS) tracking photometric term on edges only
     edge_threshold: float = 4.0         # (MonoGS, Replica)
     edge_blocks: int | None = 32        # (MonoGS, Replica)
@@ -96,6 +103,8 @@ class SlamConfig:
             raise ConfigError(f"n_segments must be >= 1, got {self.n_segments}")
         if self.crf not in ("learnable", "srgb", "identity"):
             raise ConfigError(f"crf must be learnable, srgb or identity, got {self.crf!r}")
+        if self.crf_init not in ("linear", "srgb"):
+            raise ConfigError(f"crf_init must be linear or srgb, got {self.crf_init!r}")
         if self.motion_model not in ("constant-position", "constant-velocity"):
             raise ConfigError(f"unknown motion_model {self.motion_model!r}")
         if not 0 < self.resolution_scale <= 1:
@@ -141,8 +150,14 @@ def cpu_preset() -> SlamConfig:
         # sum(w z) is far too short and pulls tracking forward; the alpha-normalised depth
         # removed that bias (monogs on `demo`, 20 frames: ATE 10.1 -> 2.5 cm).
         expected_depth=True,
-        mapping_iters=10,
-        views_per_iter=2,
+        # 30 iterations x 3 views per keyframe: with 10 x 2 the map lagged behind the new
+        # keyframes and both methods drifted (monogs on `demo`, 40 frames: raw error 12 -> 5 cm).
+        mapping_iters=30,
+        views_per_iter=3,
+        # No keyframe-pose refinement in mapping: with these short mapping rounds it moved
+        # keyframe poses by 10-20 cm (egs on `demo`; docs/notes/slam.md). The paper preset keeps
+        # the paper's 5.
+        pose_window=0,
         prune_every=20,
         prune_offset=19,
         prune_opacity=0.1,

@@ -143,10 +143,11 @@ def leaky_piecewise_linear(hdr: torch.Tensor, nodes: torch.Tensor, levels: torch
     return torch.where(hdr < 0, low, torch.where(hdr > 1, high, mid))
 
 
-def make_crf(kind: str, n_nodes: int = 16, alpha: float = 0.01) -> CameraResponse:
-    """Factory: ``"learnable"``, ``"srgb"`` (fixed) or ``"identity"``."""
+def make_crf(kind: str, n_nodes: int = 16, alpha: float = 0.01, init: str = "linear"
+             ) -> CameraResponse:
+    """Factory: ``"learnable"`` (initialised ``init``), ``"srgb"`` (fixed) or ``"identity"``."""
     if kind == "learnable":
-        return LeakyPiecewiseLinearCRF(n_nodes, alpha)
+        return LeakyPiecewiseLinearCRF(n_nodes, alpha, init)
     if kind == "srgb":
         return FixedSRGBCRF()
     if kind == "identity":

@@ -63,7 +63,7 @@ class SlamSystem:
         self.gen = torch.Generator().manual_seed(seed)
         torch.manual_seed(seed)
         self.gmap = GaussianMap.empty(torch.float32, self.device)
-        self.crf = make_crf(cfg.crf, cfg.crf_nodes, cfg.crf_alpha).to(self.device)
+        self.crf = make_crf(cfg.crf, cfg.crf_nodes, cfg.crf_alpha, cfg.crf_init).to(self.device)
         if cfg.theta is not None:
             self.theta = (float(cfg.theta), float(cfg.theta))
         else:
@@ -152,8 +152,11 @@ class SlamSystem:
             t0, t1 = (int(v) for v in self.seq.exposure(i))
             init = predict_initial(i, states, cfg.motion_model, t0, t1, ends[i - 1],
                                    ends[i - 2] if i >= 2 else None, starts[i - 1])
+            anchor = None
+            if cfg.continuous_exposure:
+                anchor = (states[-1].pose1_cw, (t0 - ends[i - 1]) / max(t1 - ends[i - 1], 1))
             tr = track_frame(self.gmap, self.crf, obs, init, self.K, self.cam.width,
-                             self.cam.height, cfg, self.theta, self.eps)
+                             self.cam.height, cfg, self.theta, self.eps, start_anchor=anchor)
             why = self._diverged(states[-1], tr.state, tr.loss, recent_losses)
             diverged = why is not None
             if diverged:
@@ -162,7 +165,8 @@ class SlamSystem:
                 result.divergences.append(f"frame {i}: {why}")
                 init = predict_initial(i, states, "constant-position", t0, t1, None, None)
                 tr = track_frame(self.gmap, self.crf, obs, init, self.K, self.cam.width,
-                                 self.cam.height, cfg, self.theta, self.eps, lr_scale=0.5)
+                                 self.cam.height, cfg, self.theta, self.eps, lr_scale=0.5,
+                                 start_anchor=anchor)
                 if self._diverged(states[-1], tr.state, tr.loss, recent_losses) is not None:
                     self.log(f"frame {i}: re-tracking diverged too; keeping the previous pose")
                     tr.state = FrameState(i, states[-1].pose1_cw.clone(),

@@ -16,6 +16,7 @@ import torch
 from egs_bench.render import GaussianMap
 from egs_bench.slam.config import SlamConfig
 from egs_bench.slam.crf import CameraResponse
+from egs_bench.slam.exposure import interpolate_w2c
 from egs_bench.slam.frames import FrameObs, FrameState
 from egs_bench.slam.lie import se3_exp
 from egs_bench.slam.render_model import frame_loss, render_views, subposes
@@ -60,17 +61,23 @@ class PoseIncrements:
 
 def track_frame(gmap: GaussianMap, crf: CameraResponse, obs: FrameObs, init: FrameState,
                 K: torch.Tensor, width: int, height: int, cfg: SlamConfig,
-                theta: tuple[float, float], eps: float, lr_scale: float = 1.0) -> TrackResult:
+                theta: tuple[float, float], eps: float, lr_scale: float = 1.0,
+                start_anchor: tuple[torch.Tensor, float] | None = None) -> TrackResult:
     """Estimate ``T_0, T_tau`` (and exposure a, b) of one frame against the fixed map.
 
     Args:
         init: initial estimate (its poses are not modified).
         K: intrinsics [3, 3] at the internal resolution.
         lr_scale: multiplies the pose learning rates (used when re-tracking after divergence).
+        start_anchor: ``(T_tau of the previous frame [4, 4], f0)``: ``T_0`` is then not free
+            but tied to the motion since the previous frame, ``T_0 = T(f0)`` on the path from
+            the previous ``T_tau`` to this ``T_tau`` (constant velocity across the gap between
+            exposures), so only ``T_tau`` is estimated (``continuous_exposure``).
     """
     blur = obs.fractions.numel() > 1
     poses = torch.stack([init.pose0_cw, init.pose1_cw]).detach().clone()
-    n_opt = 2 if blur else 1
+    anchored = blur and start_anchor is not None
+    n_opt = 2 if blur and not anchored else 1
     inc = PoseIncrements(n_opt, poses.dtype, poses.device)
     exp_a = torch.tensor(init.exp_a, dtype=gmap.dtype, device=gmap.device, requires_grad=True)
     exp_b = torch.tensor(init.exp_b, dtype=gmap.dtype, device=gmap.device, requires_grad=True)
@@ -91,7 +98,11 @@ def track_frame(gmap: GaussianMap, crf: CameraResponse, obs: FrameObs, init: Fra
             it = step_i
             opt.zero_grad(set_to_none=True)
             cur = inc.apply(poses[2 - n_opt:])
-            p0, p1 = (cur[0], cur[1]) if blur else (poses[0], cur[0])
+            if anchored:
+                p1 = cur[0]
+                p0 = interpolate_w2c(start_anchor[0], p1, _frac(start_anchor[1], p1))[0]
+            else:
+                p0, p1 = (cur[0], cur[1]) if blur else (poses[0], cur[0])
             res = render_views(gmap, subposes(p0, p1, obs.fractions), K, width, height, cfg)
             parts = frame_loss(res, obs, crf, exp_a, exp_b, cfg, tracking=True,
                                use_events=cfg.event_tracking, theta=theta, eps=eps)
@@ -108,11 +119,19 @@ def track_frame(gmap: GaussianMap, crf: CameraResponse, obs: FrameObs, init: Fra
                 break
     finally:
         gmap.requires_grad_(was_grad)
-    if not blur:
+    if anchored:
+        with torch.no_grad():
+            poses[0] = interpolate_w2c(start_anchor[0], poses[1], _frac(start_anchor[1],
+                                                                       poses[1]))[0]
+    elif not blur:
         poses[0] = poses[1]
     state = FrameState(init.index, poses[0].clone(), poses[1].clone(), float(exp_a.detach()),
                        float(exp_b.detach()))
     return TrackResult(state, loss_val, it, converged)
+
+
+def _frac(f: float, like: torch.Tensor) -> torch.Tensor:
+    return torch.tensor([f], dtype=like.dtype, device=like.device)
 
 
 def predict_initial(index: int, history: list[FrameState], motion_model: str,
