@@ -21,6 +21,7 @@ on first use).
 from __future__ import annotations
 
 import argparse
+import multiprocessing
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
@@ -81,7 +82,9 @@ def main() -> None:
     for name in args.seq:  # generate built-in sequences once, before parallel runs race on them
         resolve_sequence(name)
     if args.jobs > 1:
-        with ProcessPoolExecutor(args.jobs) as pool:
+        # spawn: generating sequences above started OpenMP threads, and forking after that aborts
+        spawn = multiprocessing.get_context("spawn")
+        with ProcessPoolExecutor(args.jobs, mp_context=spawn) as pool:
             rows = list(pool.map(_run_one, jobs, [args] * len(jobs)))
     else:
         rows = [_run_one(job, args) for job in jobs]
