@@ -76,7 +76,7 @@ class LeakyPiecewiseLinearCRF(CameraResponse):
         init: ``"srgb"`` (nodes on the sRGB curve) or ``"linear"`` (identity on [0, 1]).
     """
 
-    def __init__(self, n_nodes: int = 16, alpha: float = 0.01, init: str = "srgb") -> None:
+    def __init__(self, n_nodes: int = 16, alpha: float = 0.01, init: str = "linear") -> None:
         super().__init__()
         if n_nodes < 2:
             raise ConfigError(f"CRF needs at least 2 control nodes, got {n_nodes}")

@@ -84,7 +84,7 @@ def test_subpose_fractions_equal_event_counts_and_uniform_fallback() -> None:
 
 def test_crf_monotone_continuous_and_gradcheck() -> None:
     torch.manual_seed(0)
-    crf = crf_mod.LeakyPiecewiseLinearCRF(n_nodes=8, alpha=0.01).double()
+    crf = crf_mod.LeakyPiecewiseLinearCRF(n_nodes=8, alpha=0.01, init="srgb").double()
     with torch.no_grad():
         crf.gap_logits.copy_(torch.randn(7, dtype=torch.float64) * 2)
     x = torch.linspace(-0.5, 3.0, 2001, dtype=torch.float64)
@@ -116,9 +116,19 @@ def test_crf_monotone_continuous_and_gradcheck() -> None:
 
 
 def test_crf_srgb_init_matches_srgb_curve() -> None:
-    crf = crf_mod.LeakyPiecewiseLinearCRF(n_nodes=64).double()
+    crf = crf_mod.LeakyPiecewiseLinearCRF(n_nodes=64, init="srgb").double()
     x = torch.linspace(0.05, 1, 50, dtype=torch.float64)
     np.testing.assert_allclose(crf(x).detach().numpy(), crf_mod.srgb_encode(x).numpy(), atol=5e-3)
+
+
+def test_crf_default_start_is_the_identity_with_leaky_ends() -> None:
+    crf = crf_mod.make_crf("learnable", n_nodes=16, alpha=0.01).double()
+    x = torch.linspace(0.0, 1.0, 37, dtype=torch.float64)
+    np.testing.assert_allclose(crf(x).detach().numpy(), x.numpy(), atol=1e-6)
+    np.testing.assert_allclose(crf.inverse(x).numpy(), x.numpy(), atol=1e-6)
+    # outside [0, 1]: slope alpha below 0, 1 + alpha - alpha / sqrt(I) above 1
+    ends = crf(torch.tensor([-2.0, 4.0], dtype=torch.float64)).detach().numpy()
+    np.testing.assert_allclose(ends, [-0.02, 1.0 + 0.01 - 0.01 / 2.0], atol=1e-12)
 
 
 def test_losses_against_hand_computation() -> None:
