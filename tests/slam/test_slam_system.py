@@ -59,20 +59,34 @@ def test_egs_end_to_end_writes_complete_run(egs_run) -> None:
     assert stats["gaussians"] > 0
 
 
+@pytest.fixture(scope="module")
+def small_room(tmp_path_factory) -> Path:
+    """8 frames of the `demo` motion at half its resolution (112x64): ~2.6 cm and ~1 deg per
+    frame through the furnished office, 25 ms exposure, events."""
+    from egs_bench.datasets.synthetic import make_synthetic
+
+    return make_synthetic("office", tmp_path_factory.mktemp("small") / "office", frames=8,
+                          width=112, height=64, speed=0.4, seed=7, exposure_ms=25.0,
+                          progress=False)
+
+
 @pytest.mark.slow
-@pytest.mark.xfail(reason="measured weakness, see docs/notes/slam.md: at 64x48 the sparse, "
-                   "briefly optimised map (Gaussians ~8 cm wide, alpha < 1) biases the tracking "
-                   "loss; measured ATE 4.8 cm (egs) and 4.4 cm (monogs) vs 1.5 cm for a "
-                   "tracker that never moves", strict=False)
-def test_egs_end_to_end_ate_beats_a_stuck_tracker(egs_run) -> None:
-    run, seq = egs_run
+@pytest.mark.parametrize("method", ["egs", "monogs"])
+def test_end_to_end_tracking_error_is_a_fraction_of_the_motion(small_room: Path, tmp_path: Path,
+                                                               method: str) -> None:
+    """The `cpu` preset at the sequence's own resolution (the demo's internal resolution):
+    the RMS error of the estimated T_tau must stay below a fifth of that of a tracker that
+    never moves (absolute error, no alignment: frame 0 is placed at GT). Measured: egs 1.13 cm,
+    monogs 1.33 cm, vs 9.13 cm for the stuck tracker (egs-no-events, which diverges on the
+    40-frame demo, reaches 2.22 cm here)."""
+    seq = Sequence.open(small_room)
+    cfg = methods.BUILTIN[method].config("cpu").replace(resolution_scale=1.0)
+    run = run_slam(seq, tmp_path / method, method_name=method, config=cfg, preset="cpu",
+                   seed=0, progress=False)
     traj = run.read_trajectory()
-    # The camera moves ~2.6 cm and 3 deg in 5 frames through a furnished 3-D room. Tracking
-    # must clearly beat a tracker that never moves from frame 0's pose (absolute error, no
-    # alignment: frame 0 is placed at GT).
-    ate = float(np.sqrt(((traj.poses[:, :3, 3] - seq.poses[:, :3, 3]) ** 2).sum(1).mean()))
-    stuck = float(np.sqrt(((seq.poses[:1, :3, 3] - seq.poses[:, :3, 3]) ** 2).sum(1).mean()))
-    assert ate < 0.5 * stuck, f"ATE {ate * 100:.2f} cm vs {stuck * 100:.2f} cm when stuck"
+    err = np.sqrt(((traj.poses[:, :3, 3] - seq.poses[:, :3, 3]) ** 2).sum(1).mean())
+    stuck = np.sqrt(((seq.poses[:1, :3, 3] - seq.poses[:, :3, 3]) ** 2).sum(1).mean())
+    assert err < 0.2 * stuck, f"{method}: {err * 100:.2f} cm vs {stuck * 100:.2f} cm stuck"
 
 
 def test_divergence_falls_back_to_retracking_then_previous_pose(tiny_sequence: Path,
