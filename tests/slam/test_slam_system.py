@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import torch
 from typer.testing import CliRunner
 
 import egs_bench.cli.slam_cmds  # noqa: F401  (registers the commands)
@@ -197,3 +198,24 @@ def test_cli_list_methods_and_bad_method() -> None:
     assert res.exit_code != 0 and "nonsense" in res.output
     res = runner.invoke(app, ["run", "--method", "nope", "--seq", "x"])
     assert res.exit_code != 0
+
+
+def test_continuous_exposure_places_t0_on_the_path_from_the_previous_frame(
+        tiny_sequence: Path) -> None:
+    """With ``continuous_exposure`` tracking estimates T_tau only; T_0 of every tracked frame is
+    the pose at f0 = (t_start - previous t_end) / (t_end - previous t_end) on the straight path
+    from the previous frame's T_tau to this frame's T_tau."""
+    from egs_bench.slam.exposure import interpolate_w2c
+    from egs_bench.slam.system import SlamSystem
+
+    seq = Sequence.open(tiny_sequence)
+    cfg = methods.BUILTIN["egs"].config("cpu").replace(
+        **{**FAST, "tracking_iters": 3, "init_iters": 3, "continuous_exposure": True})
+    states = SlamSystem(seq, cfg, seed=0).run(len(seq)).states
+    for i in range(1, len(seq)):
+        t0, t1 = seq.exposure(i)
+        prev_end = seq.exposure(i - 1)[1]
+        f0 = torch.tensor([(t0 - prev_end) / (t1 - prev_end)], dtype=torch.float64)
+        expect = interpolate_w2c(states[i - 1].pose1_cw, states[i].pose1_cw, f0)[0]
+        assert not torch.equal(states[i].pose0_cw, states[i].pose1_cw)
+        torch.testing.assert_close(states[i].pose0_cw, expect, rtol=0, atol=1e-9)
