@@ -219,3 +219,37 @@ def test_continuous_exposure_places_t0_on_the_path_from_the_previous_frame(
         expect = interpolate_w2c(states[i - 1].pose1_cw, states[i].pose1_cw, f0)[0]
         assert not torch.equal(states[i].pose0_cw, states[i].pose1_cw)
         torch.testing.assert_close(states[i].pose0_cw, expect, rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("events", [True, False])
+def test_black_frame_missing_depth_and_no_events_run_through(tiny_sequence: Path,
+                                                             tmp_path: Path,
+                                                             events: bool) -> None:
+    """Frame 2 all black, half of frame 1's depth missing, and (second case) a sequence without
+    events: the run completes with finite poses for every frame."""
+    import shutil
+
+    import cv2
+    import yaml
+
+    root = tmp_path / "seq"
+    shutil.copytree(tiny_sequence, root)
+    black = cv2.imread(str(root / "rgb" / "000002.png"))
+    cv2.imwrite(str(root / "rgb" / "000002.png"), np.zeros_like(black))
+    depth_path = str(root / "depth" / "000001.png")
+    depth = cv2.imread(depth_path, cv2.IMREAD_UNCHANGED)
+    depth[:, : depth.shape[1] // 2] = 0
+    cv2.imwrite(depth_path, depth)
+    if not events:
+        meta = yaml.safe_load((root / "meta.yaml").read_text())
+        meta["has_events"] = False
+        (root / "meta.yaml").write_text(yaml.safe_dump(meta))
+        (root / "events.h5").unlink()
+    seq = Sequence.open(root)
+    assert seq.has_events is events
+    cfg = methods.BUILTIN["egs"].config("cpu").replace(
+        **{**FAST, "init_iters": 3, "tracking_iters": 3})
+    run = run_slam(seq, tmp_path / "run", method_name="egs", config=cfg, progress=False)
+    assert run.read_status().state == "done"
+    poses = run.read_trajectory().poses
+    assert len(poses) == len(seq) and np.isfinite(poses).all()
