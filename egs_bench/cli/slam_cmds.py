@@ -29,16 +29,26 @@ def run_cmd(
     evaluate: bool = typer.Option(False, "--eval",
                                   help="Evaluate the run afterwards (writes metrics.json)."),
     quiet: bool = typer.Option(False, "--quiet", help="No progress bar."),
+    options: list[str] = typer.Option([], "--set",
+                                      help="Override one configuration field, KEY=VALUE "
+                                           "(repeatable; built-in methods only), e.g. "
+                                           "--set lambda_d=0.05."),
 ) -> None:
     """Run a SLAM method on a sequence and write its run folder."""
-    from egs_bench.slam.methods import get_method
+    from egs_bench.errors import ConfigError
+    from egs_bench.slam.config import parse_overrides
+    from egs_bench.slam.methods import ConfiguredSlamMethod, get_method
     from egs_bench.slam.runner import resolve_sequence
 
     m = get_method(method)
+    overrides = parse_overrides(options)
+    if overrides and not isinstance(m, ConfiguredSlamMethod):
+        raise ConfigError(f"--set applies to built-in methods; {m.name!r} is a user method")
     sequence = resolve_sequence(seq)
     out_dir = out or Path("runs") / m.name.replace(":", "_") / sequence.name
+    extra = {"options": overrides} if overrides else {}
     run = m.run(sequence, out_dir, preset=preset, device=device, seed=seed,
-                max_frames=max_frames, progress=not quiet)
+                max_frames=max_frames, progress=not quiet, **extra)
     typer.echo(f"run folder: {run.path}")
     if evaluate:
         from egs_bench.eval.evaluate import evaluate_run

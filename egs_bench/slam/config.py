@@ -180,3 +180,43 @@ def preset(name: str) -> SlamConfig:
         return PRESETS[name]()
     except KeyError:
         raise ConfigError(f"unknown preset {name!r} (choose from {', '.join(PRESETS)})") from None
+
+
+def parse_overrides(items: list[str]) -> dict[str, Any]:
+    """``["lambda_d=0.05", "crf=srgb", "theta=null"]`` -> ``{"lambda_d": 0.05, ...}``.
+
+    Values are read as YAML scalars (numbers, true/false, null, strings); keys must be
+    :class:`SlamConfig` fields.
+
+    Raises:
+        ConfigError: an item without ``=`` or an unknown key.
+    """
+    import yaml
+
+    kinds = {f.name: str(f.type) for f in dataclasses.fields(SlamConfig)}
+    out: dict[str, Any] = {}
+    for item in items:
+        key, sep, raw = item.partition("=")
+        key = key.strip()
+        if not sep or not key:
+            raise ConfigError(f"option override {item!r} is not KEY=VALUE")
+        if key not in kinds:
+            raise ConfigError(f"unknown SLAM option {key!r} in {item!r}")
+        out[key] = _typed(key, kinds[key], yaml.safe_load(raw) if raw.strip() else None)
+    return out
+
+
+def _typed(key: str, kind: str, value: Any) -> Any:
+    """``value`` checked against the field's annotation (``float``, ``int | None``, ...)."""
+    base, _, rest = kind.partition(" | ")
+    if value is None and rest == "None":
+        return None
+    ok = {"float": isinstance(value, (int, float)) and not isinstance(value, bool),
+          "int": isinstance(value, int) and not isinstance(value, bool),
+          "bool": isinstance(value, bool), "str": isinstance(value, str)}.get(base)
+    if ok is None:
+        raise ConfigError(f"SLAM option {key!r} ({kind}) cannot be set from the command line")
+    if not ok:
+        raise ConfigError(f"SLAM option {key!r} needs a {kind} value, got {value!r}")
+    return float(value) if base == "float" else value
+

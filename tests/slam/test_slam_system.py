@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
+import yaml
 from typer.testing import CliRunner
 
 import egs_bench.cli.slam_cmds  # noqa: F401  (registers the commands)
@@ -253,3 +254,32 @@ def test_black_frame_missing_depth_and_no_events_run_through(tiny_sequence: Path
     assert run.read_status().state == "done"
     poses = run.read_trajectory().poses
     assert len(poses) == len(seq) and np.isfinite(poses).all()
+
+
+def test_parse_overrides_types_and_errors() -> None:
+    from egs_bench.slam.config import parse_overrides
+
+    got = parse_overrides(["lambda_d=0.05", "crf=srgb", "theta=null", "tracking_iters=40",
+                           "event_mapping=false", "views_per_iter=3", "lambda_e=1"])
+    assert got == {"lambda_d": 0.05, "crf": "srgb", "theta": None, "tracking_iters": 40,
+                   "event_mapping": False, "views_per_iter": 3, "lambda_e": 1.0}
+    assert isinstance(got["lambda_e"], float)
+    for bad, words in [("lambda_d", "KEY=VALUE"), ("foo=1", "unknown"),
+                       ("tracking_iters=1.5", "int"), ("event_mapping=2", "bool"),
+                       ("lambda_d=abc", "float"), ("extra=1", "command line")]:
+        with pytest.raises(ConfigError, match=words):
+            parse_overrides([bad])
+
+
+def test_cli_run_set_overrides_reach_the_run_config(tiny_sequence: Path, tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    res = CliRunner().invoke(app, [
+        "run", "--method", "monogs", "--seq", str(tiny_sequence), "--preset", "cpu",
+        "--out", str(out), "--max-frames", "1", "--quiet",
+        "--set", "init_iters=2", "--set", "lambda_d=0.2"])
+    assert res.exit_code == 0, res.output
+    cfg = yaml.safe_load((out / "config.yaml").read_text())
+    assert cfg["slam"]["lambda_d"] == 0.2 and cfg["slam"]["init_iters"] == 2
+    res = CliRunner().invoke(app, ["run", "--method", "monogs", "--seq", str(tiny_sequence),
+                                   "--set", "lambda_d=abc"])
+    assert isinstance(res.exception, ConfigError) and "lambda_d" in str(res.exception)
