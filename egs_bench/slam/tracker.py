@@ -100,7 +100,7 @@ def track_frame(gmap: GaussianMap, crf: CameraResponse, obs: FrameObs, init: Fra
             cur = inc.apply(poses[2 - n_opt:])
             if anchored:
                 p1 = cur[0]
-                p0 = interpolate_w2c(start_anchor[0], p1, _frac(start_anchor[1], p1))[0]
+                p0 = _anchored_start(start_anchor, p1)
             else:
                 p0, p1 = (cur[0], cur[1]) if blur else (poses[0], cur[0])
             res = render_views(gmap, subposes(p0, p1, obs.fractions), K, width, height, cfg)
@@ -121,8 +121,7 @@ def track_frame(gmap: GaussianMap, crf: CameraResponse, obs: FrameObs, init: Fra
         gmap.requires_grad_(was_grad)
     if anchored:
         with torch.no_grad():
-            poses[0] = interpolate_w2c(start_anchor[0], poses[1], _frac(start_anchor[1],
-                                                                       poses[1]))[0]
+            poses[0] = _anchored_start(start_anchor, poses[1])
     elif not blur:
         poses[0] = poses[1]
     state = FrameState(init.index, poses[0].clone(), poses[1].clone(), float(exp_a.detach()),
@@ -130,8 +129,11 @@ def track_frame(gmap: GaussianMap, crf: CameraResponse, obs: FrameObs, init: Fra
     return TrackResult(state, loss_val, it, converged)
 
 
-def _frac(f: float, like: torch.Tensor) -> torch.Tensor:
-    return torch.tensor([f], dtype=like.dtype, device=like.device)
+def _anchored_start(anchor: tuple[torch.Tensor, float], pose1_cw: torch.Tensor) -> torch.Tensor:
+    """``T_0`` [4, 4] at fraction ``anchor[1]`` of the path from ``anchor[0]`` to ``pose1_cw``."""
+    prev_cw, f0 = anchor
+    frac = torch.tensor([f0], dtype=pose1_cw.dtype, device=pose1_cw.device)
+    return interpolate_w2c(prev_cw, pose1_cw, frac)[0]
 
 
 def predict_initial(index: int, history: list[FrameState], motion_model: str,
