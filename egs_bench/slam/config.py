@@ -32,7 +32,7 @@ class SlamConfig:
     crf_alpha: float = 0.01             # (paper)
     # Initial curve of the learnable CRF: "linear" (evenly spaced nodes, the identity; the paper
     # does not say) or "srgb". Measured on `demo` (20 frames, cpu preset): the sRGB start
-    # tracked worse (docs/notes/slam.md, "CRF initialisation").
+    # tracked worse (raw error 6.4 vs 1.6 cm; docs/notes/slam.md, third-session finding 3).
     crf_init: str = "linear"
     exposure_compensation: bool = True  # per-frame exp(a) I + b (MonoGS)
     theta: float | None = None          # event threshold; None = the sequence's pos/neg values
@@ -189,7 +189,7 @@ def parse_overrides(items: list[str]) -> dict[str, Any]:
     :class:`SlamConfig` fields.
 
     Raises:
-        ConfigError: an item without ``=`` or an unknown key.
+        ConfigError: an item without ``=``, an unknown key, or a value of the wrong type.
     """
     import yaml
 
