@@ -96,6 +96,21 @@ def bin_objects(
 
 
 @njit(cache=True, inline="always", fastmath=True, _nrt=False)
+def _slab(lo, ld, h, tnear, tfar, face, face_pos):
+    """One axis of the ray/box slab test: ray origin ``lo`` and direction ``ld`` along the axis,
+    half-extent ``h``. Returns the updated ``(tnear, tfar, face, miss)``; the entering face is
+    ``face_pos`` (+1 when the ray travels towards -axis)."""
+    if ld != 0.0:
+        t1, t2 = (-h - lo) / ld, (h - lo) / ld
+        if t1 > t2:
+            t1, t2 = t2, t1
+        if t1 > tnear:
+            tnear, face = t1, face_pos + 1 if ld < 0.0 else face_pos
+        return tnear, min(tfar, t2), face, False
+    return tnear, tfar, face, abs(lo) > h
+
+
+@njit(cache=True, inline="always", fastmath=True, _nrt=False)
 def _trace(ox, oy, oz, dx, dy, dz, room, boxes, spheres, cylinders, objects, tlist, ty, tx, tcount):
     """Nearest hit of ray ``o + t d`` (t > 0): returns ``(t, kind, index)``.
 
@@ -126,38 +141,17 @@ def _trace(ox, oy, oz, dx, dy, dz, room, boxes, spheres, cylinders, objects, tli
         if okind == OBJ_BOX:
             rx, ry, rz = ox - boxes[i, 0], oy - boxes[i, 1], oz - boxes[i, 2]
             c, s = boxes[i, 3], boxes[i, 4]
-            # Slab test in the box frame, axis by axis (unrolled: no tuples in the hot loop).
-            tnear, tfar = -1e30, 1e30
-            face = -1
-            lo_a, ld_a, h = c * rx + s * ry, c * dx + s * dy, boxes[i, 5]
-            if ld_a != 0.0:
-                t1, t2 = (-h - lo_a) / ld_a, (h - lo_a) / ld_a
-                if t1 > t2:
-                    t1, t2 = t2, t1
-                if t1 > tnear:
-                    tnear, face = t1, 1 if ld_a < 0.0 else 0
-                tfar = min(tfar, t2)
-            elif abs(lo_a) > h:
+            # Slab test in the box frame, one axis per call (scalars in, scalars out).
+            tnear, tfar, face, miss = _slab(c * rx + s * ry, c * dx + s * dy, boxes[i, 5],
+                                            -1e30, 1e30, -1, 0)
+            if miss:
                 continue
-            lo_a, ld_a, h = -s * rx + c * ry, -s * dx + c * dy, boxes[i, 6]
-            if ld_a != 0.0:
-                t1, t2 = (-h - lo_a) / ld_a, (h - lo_a) / ld_a
-                if t1 > t2:
-                    t1, t2 = t2, t1
-                if t1 > tnear:
-                    tnear, face = t1, 3 if ld_a < 0.0 else 2
-                tfar = min(tfar, t2)
-            elif abs(lo_a) > h:
+            tnear, tfar, face, miss = _slab(-s * rx + c * ry, -s * dx + c * dy, boxes[i, 6],
+                                            tnear, tfar, face, 2)
+            if miss:
                 continue
-            lo_a, ld_a, h = rz, dz, boxes[i, 7]
-            if ld_a != 0.0:
-                t1, t2 = (-h - lo_a) / ld_a, (h - lo_a) / ld_a
-                if t1 > t2:
-                    t1, t2 = t2, t1
-                if t1 > tnear:
-                    tnear, face = t1, 5 if ld_a < 0.0 else 4
-                tfar = min(tfar, t2)
-            elif abs(lo_a) > h:
+            tnear, tfar, face, miss = _slab(rz, dz, boxes[i, 7], tnear, tfar, face, 4)
+            if miss:
                 continue
             if face >= 0 and tnear <= tfar and _EPS_T < tnear < best_t:
                 best_t, kind, index = tnear, KIND_FACE, 6 + 6 * i + face
