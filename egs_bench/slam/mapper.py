@@ -129,6 +129,8 @@ class Mapper:
                 break
             total.backward()
             opt.step()
+            with torch.no_grad():  # radiance is non-negative (MonoGS clamps colour at 0)
+                self.gmap.colors.clamp_(min=0.0)
             kf_opt.step()
             if self.crf_opt is not None and not initial:
                 self.crf_opt.step()

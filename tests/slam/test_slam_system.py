@@ -16,6 +16,7 @@ from egs_bench.cli.app import app
 from egs_bench.datasets.sequence import Sequence
 from egs_bench.errors import ConfigError
 from egs_bench.eval.run_folder import RunFolder
+from egs_bench.render.ply import load_ply
 from egs_bench.slam import methods
 from egs_bench.slam.config import cpu_preset
 from egs_bench.slam.runner import run_slam
@@ -57,6 +58,8 @@ def test_egs_end_to_end_writes_complete_run(egs_run) -> None:
     assert run.render_indices() == list(range(len(seq)))
     assert run.read_render(1).shape == (seq.height, seq.width, 3)
     assert (run.path / "map.ply").is_file()
+    # radiance is non-negative: mapping projects colours onto >= 0 after every step
+    assert float(load_ply(run.path / "map.ply").colors.min()) >= -1e-6
     stats = json.loads((run.path / "slam_stats.json").read_text())
     assert stats["gaussians"] > 0
 
