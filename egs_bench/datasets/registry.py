@@ -60,6 +60,12 @@ BUILTIN_SEQUENCES: dict[str, BuiltinSequence] = {
     "demo-fast": BuiltinSequence("office", "demo's room with 3x faster motion (strong blur)",
                                  frames=40, width=224, height=128, speed=1.2, seed=7,
                                  exposure_ms=25.0),
+    "livingroom-fast": BuiltinSequence("livingroom", "livingroom-s's motion 3x faster (strong "
+                                       "blur)", frames=40, width=224, height=128, speed=1.2,
+                                       seed=8, exposure_ms=25.0),
+    "studio-fast": BuiltinSequence("studio", "studio-s's motion 3x faster (strong blur)",
+                                   frames=40, width=224, height=128, speed=1.2, seed=9,
+                                   exposure_ms=25.0),
 }
 
 
