@@ -74,7 +74,7 @@ def frame_loss(res, obs: FrameObs, crf: CameraResponse, exp_a: torch.Tensor,
             weight = weight * obs.edge_weight
         depth_mask = obs.depth_mask[None] & (alpha > 0.95)
     l_i = photometric_l1(ldr, obs.rgb, obs.rgb_mask, weight)
-    rendered_depth = res.expected_depth if cfg.expected_depth else res.depth
+    rendered_depth = res.expected_depth if tracking and cfg.tracking_expected_depth else res.depth
     l_d = min_depth_loss(rendered_depth, obs.depth, depth_mask)
     total = cfg.lambda_id * (cfg.lambda_i * l_i + cfg.lambda_d * l_d)
     l_he = l_ne = torch.zeros((), dtype=hdr.dtype, device=hdr.device)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 import torch
@@ -11,7 +13,11 @@ from scipy.spatial.transform import Rotation
 from egs_bench.geometry import interpolate_pose, invert_pose
 from egs_bench.slam import crf as crf_mod
 from egs_bench.slam import exposure, keyframes, losses
+from egs_bench.slam.config import cpu_preset
+from egs_bench.slam.crf import make_crf
+from egs_bench.slam.frames import FrameObs
 from egs_bench.slam.lie import invert_rigid, se3_exp, so3_exp, so3_log
+from egs_bench.slam.render_model import frame_loss
 
 
 def _hat6(xi: np.ndarray) -> np.ndarray:
@@ -232,3 +238,24 @@ def test_window_removal_overlap_then_dso() -> None:
     r_big = keyframes.KeyframeRules(window_size=10)
     win2, removed2 = keyframes.update_window([3, 2, 1, 0], 4, vis_all, poses, r_big)
     assert removed2 == [] and win2 == [4, 3, 2, 1, 0]
+
+
+def test_normalised_depth_in_tracking_only() -> None:
+    """``tracking_expected_depth`` switches tracking's L_D to depth / alpha; mapping keeps
+    MonoGS's sum(w z), whose shortfall at low alpha pulls opacity back up."""
+    h, w = 4, 5
+    ones = torch.ones(h, w, dtype=torch.bool)
+    obs = FrameObs(0, torch.full((h, w, 3), 0.5), torch.full((h, w), 2.0), ones, ones, None,
+                   torch.tensor([1.0]), None, 0)
+    res = SimpleNamespace(rgb=torch.full((1, h, w, 3), 0.5), alpha=torch.full((1, h, w), 0.98),
+                          depth=torch.full((1, h, w), 1.0),        # sum(w z): 1 m short
+                          expected_depth=torch.full((1, h, w), 2.0))  # depth / alpha: exact
+    cfg = cpu_preset().replace(n_segments=1, event_tracking=False, event_mapping=False,
+                               exposure_compensation=False, tracking_expected_depth=True)
+    crf = make_crf("identity", 16, 0.01, "linear")
+    zero = torch.zeros(())
+    kw = dict(use_events=False, theta=(0.25, 0.25), eps=1e-3)
+    assert frame_loss(res, obs, crf, zero, zero, cfg, tracking=True, **kw).depth == 0.0
+    assert frame_loss(res, obs, crf, zero, zero, cfg, tracking=False, **kw).depth == 1.0
+    off = cfg.replace(tracking_expected_depth=False)
+    assert frame_loss(res, obs, crf, zero, zero, off, tracking=True, **kw).depth == 1.0
