@@ -57,12 +57,12 @@ class SlamConfig:
     edge_threshold: float = 4.0         # (MonoGS, Replica)
     edge_blocks: int | None = 32        # (MonoGS, Replica)
     rgb_boundary_threshold: float = 0.01  # (MonoGS)
-    # Tracking's depth term on the alpha-normalised depth sum(w z) / sum(w) instead of MonoGS's
-    # sum(w z): the latter is biased short wherever the map does not yet reach alpha = 1, which
-    # on a sparse, briefly optimised map pulls the tracked pose forward. Mapping always uses
-    # sum(w z): with the normalised depth (alpha detached in the denominator) the depth term
-    # eroded opacity without a restoring force and opened holes (docs/notes/slam.md).
-    tracking_expected_depth: bool = False
+    # Depth term on the alpha-normalised depth sum(w z) / sum(w) instead of MonoGS's sum(w z):
+    # the latter is biased short wherever the map does not yet reach alpha = 1, which on a
+    # sparse, briefly optimised map pulls the tracked pose forward. The division keeps alpha
+    # in the graph: with alpha detached the term lowered every opacity where the depth was
+    # too long and eroded the map into holes (docs/notes/slam.md, finding 16).
+    expected_depth: bool = False
     # ---- keyframes / mapping -------------------------------------------------------------
     kf_interval: int = 4                # (MonoGS)
     kf_overlap: float = 0.95
@@ -151,7 +151,7 @@ def cpu_preset() -> SlamConfig:
         # The sparse CPU map leaves alpha < 1 in many pixels, where the accumulated depth
         # sum(w z) is far too short and pulls tracking forward; the alpha-normalised depth
         # removed that bias (monogs on `demo`, 20 frames: ATE 10.1 -> 2.5 cm).
-        tracking_expected_depth=True,
+        expected_depth=True,
         # 30 iterations x 3 views per keyframe: with 10 x 2 the map lagged behind the new
         # keyframes and both methods drifted (monogs on `demo`, 40 frames: raw error 12 -> 5 cm).
         mapping_iters=30,

@@ -17,7 +17,7 @@ from egs_bench.slam.config import cpu_preset
 from egs_bench.slam.crf import make_crf
 from egs_bench.slam.frames import FrameObs
 from egs_bench.slam.lie import invert_rigid, se3_exp, so3_exp, so3_log
-from egs_bench.slam.render_model import frame_loss
+from egs_bench.slam.render_model import frame_loss, normalised_depth
 
 
 def _hat6(xi: np.ndarray) -> np.ndarray:
@@ -240,22 +240,31 @@ def test_window_removal_overlap_then_dso() -> None:
     assert removed2 == [] and win2 == [4, 3, 2, 1, 0]
 
 
-def test_normalised_depth_in_tracking_only() -> None:
-    """``tracking_expected_depth`` switches tracking's L_D to depth / alpha; mapping keeps
-    MonoGS's sum(w z), whose shortfall at low alpha pulls opacity back up."""
+def test_normalised_depth_keeps_alpha_in_the_graph() -> None:
+    """L_D on sum(w z) / sum(w): a surface at one depth renders the same normalised depth
+    whatever its opacity, so the depth term must not move opacity there (with alpha detached
+    it lowered it: the holes of docs/notes/slam.md finding 16)."""
     h, w = 4, 5
     ones = torch.ones(h, w, dtype=torch.bool)
     obs = FrameObs(0, torch.full((h, w, 3), 0.5), torch.full((h, w), 2.0), ones, ones, None,
                    torch.tensor([1.0]), None, 0)
-    res = SimpleNamespace(rgb=torch.full((1, h, w, 3), 0.5), alpha=torch.full((1, h, w), 0.98),
-                          depth=torch.full((1, h, w), 1.0),        # sum(w z): 1 m short
-                          expected_depth=torch.full((1, h, w), 2.0))  # depth / alpha: exact
     cfg = cpu_preset().replace(n_segments=1, event_tracking=False, event_mapping=False,
-                               exposure_compensation=False, tracking_expected_depth=True)
+                               exposure_compensation=False, expected_depth=True)
     crf = make_crf("identity", 16, 0.01, "linear")
     zero = torch.zeros(())
     kw = dict(use_events=False, theta=(0.25, 0.25), eps=1e-3)
-    assert frame_loss(res, obs, crf, zero, zero, cfg, tracking=True, **kw).depth == 0.0
-    assert frame_loss(res, obs, crf, zero, zero, cfg, tracking=False, **kw).depth == 1.0
-    off = cfg.replace(tracking_expected_depth=False)
-    assert frame_loss(res, obs, crf, zero, zero, off, tracking=True, **kw).depth == 1.0
+    for tracking in (True, False):
+        opacity = torch.full((1, h, w), 0.97, requires_grad=True)  # alpha of a single surface
+        res = SimpleNamespace(rgb=torch.full((1, h, w, 3), 0.5), alpha=opacity,
+                              depth=opacity * 2.5,  # sum(w z) of that surface, 0.5 m too far
+                              expected_depth=(opacity * 2.5) / opacity.detach())
+        parts = frame_loss(res, obs, crf, zero, zero, cfg, tracking=tracking, **kw)
+        assert parts.depth == pytest.approx(0.5)
+        (grad,) = torch.autograd.grad(parts.total, opacity, retain_graph=True)
+        assert float(grad.abs().max()) < 1e-7
+        detached = normalised_depth(SimpleNamespace(depth=res.depth, alpha=opacity.detach()))
+        (grad_detached,) = torch.autograd.grad((detached - 2.0).abs().mean(), opacity)
+        assert float(grad_detached.min()) > 0  # the old form: descent lowers every opacity
+    plain = frame_loss(res, obs, crf, zero, zero, cfg.replace(expected_depth=False),
+                       tracking=False, **kw)
+    assert plain.depth == pytest.approx(abs(0.97 * 2.5 - 2.0))
