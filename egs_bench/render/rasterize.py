@@ -22,9 +22,10 @@ class RasterResult:
         rgb: [C, H, W, 3] linear RGB, ``sum_i w_i c_i + T_final * background``.
         depth: [C, H, W] accumulated depth ``sum_i w_i z_i`` (m, camera z; MonoGS's depth,
             gsplat's "D"). Not normalised: it shrinks where alpha < 1.
-        expected_depth: [C, H, W] ``depth / alpha`` (m; 0 where alpha is ~0). The alpha in the
-            denominator is detached: it acts as a normaliser, so a loss on this image does not
-            push opacities through it (MonoGS's opacity carries no gradient either).
+        expected_depth: [C, H, W] ``depth / alpha`` (m; 0 where alpha is ~0), differentiable
+            through both: scaling every opacity of a pixel leaves it unchanged, so a loss on it
+            only moves weight between Gaussians at different depths. (With alpha detached, a
+            too-long depth lowered every opacity and eroded SLAM maps into holes.)
         alpha: [C, H, W] accumulated opacity ``1 - T_final`` (differentiable, as gsplat's
             ``render_alphas``; detach it when using it as a weight or a mask).
         visibility: [C, N] bool, True where the Gaussian contributed to at least one pixel
@@ -177,6 +178,6 @@ def rasterize(
                 f"need [{viewmats.shape[0]},3]"
             )
         rgb = rgb + (1 - alpha)[..., None] * backgrounds[:, None, None, :].to(rgb.dtype)
-    a = alpha.detach()
-    expected = torch.where(a > 1e-10, depth / a.clamp(min=1e-10), torch.zeros_like(depth))
+    # alpha is kept in the graph; the clamp bounds the gradient 1/alpha^2 at nearly empty pixels
+    expected = torch.where(alpha > 1e-10, depth / alpha.clamp(min=1e-4), torch.zeros_like(depth))
     return RasterResult(rgb, depth, expected, alpha, visibility, radii, means2d, depths)

@@ -49,17 +49,6 @@ def render_views(gmap: GaussianMap, viewmats: torch.Tensor, K: torch.Tensor, wid
     return gmap.render(vm, ks, width, height, near_plane=cfg.near_plane, backend=cfg.backend)
 
 
-def normalised_depth(res, min_alpha: float = 1e-4) -> torch.Tensor:
-    """``sum(w z) / sum(w)`` [M, H, W] with the rendered alpha kept in the graph.
-
-    The rasteriser's ``expected_depth`` detaches alpha; through it, a depth that is too long
-    only ever lowers opacity (the gradient of ``sum(w z)`` divided by a constant), and the map
-    erodes into holes. With alpha attached the gradient only moves weight between Gaussians at
-    different depths; scaling every opacity of a pixel leaves it unchanged.
-    """
-    return res.depth / res.alpha.clamp_min(min_alpha)
-
-
 def frame_loss(res, obs: FrameObs, crf: CameraResponse, exp_a: torch.Tensor,
                exp_b: torch.Tensor, cfg: SlamConfig, *, tracking: bool, use_events: bool,
                theta: tuple[float, float], eps: float) -> LossParts:
@@ -85,7 +74,7 @@ def frame_loss(res, obs: FrameObs, crf: CameraResponse, exp_a: torch.Tensor,
             weight = weight * obs.edge_weight
         depth_mask = obs.depth_mask[None] & (alpha > 0.95)
     l_i = photometric_l1(ldr, obs.rgb, obs.rgb_mask, weight)
-    rendered_depth = normalised_depth(res) if cfg.expected_depth else res.depth
+    rendered_depth = res.expected_depth if cfg.expected_depth else res.depth
     l_d = min_depth_loss(rendered_depth, obs.depth, depth_mask)
     total = cfg.lambda_id * (cfg.lambda_i * l_i + cfg.lambda_d * l_d)
     l_he = l_ne = torch.zeros((), dtype=hdr.dtype, device=hdr.device)
