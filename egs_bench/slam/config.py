@@ -86,6 +86,10 @@ class SlamConfig:
     lr_quats: float = 0.001
     lr_crf: float = 0.005
     kf_pose_lr_scale: float = 0.5       # (MonoGS) keyframe pose lr = 0.5 x tracking lr
+    # Final map refinement after the last frame, one random keyframe per iteration (0 = none).
+    # MonoGS runs 26000 for its "after_opt" numbers only; the paper does not say whether
+    # EGS-SLAM refines, so neither preset does.
+    refine_iters: int = 0
     # ---- map ---------------------------------------------------------------------------
     pcd_downsample_init: int = 8        # keep 1 of this many valid pixels at frame 0
     pcd_downsample: int = 16            # ... at later keyframes
@@ -113,7 +117,7 @@ class SlamConfig:
             raise ConfigError("resolution_scale must be in (0, 1]")
         if self.window_size < 3 or self.pose_window < 0:
             raise ConfigError("window_size must be >= 3 and pose_window >= 0")
-        for name in ("tracking_iters", "mapping_iters", "init_iters"):
+        for name in ("tracking_iters", "mapping_iters", "init_iters", "refine_iters"):
             if getattr(self, name) < 0:
                 raise ConfigError(f"{name} must be >= 0")
         if (self.event_tracking or self.event_mapping) and self.n_segments < 2:

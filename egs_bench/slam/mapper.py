@@ -159,6 +159,37 @@ class Mapper:
                 self._prune(cfg.prune_opacity)
         return loss_val
 
+    def refine(self, states: dict[int, FrameState], observations: dict[int, FrameObs],
+               keyframes: list[int], iterations: int) -> float:
+        """Final map refinement after the sequence (MonoGS's colour refinement): each iteration
+        optimises the Gaussians on one random keyframe; poses, exposures and the CRF stay fixed.
+        Unlike MonoGS (0.8 L1 + 0.2 (1 - SSIM) on RGB), the loss is the method's own mapping
+        loss, so `egs` keeps its blur model and events. Returns the last loss."""
+        cfg = self.cfg
+        opt = self._gaussian_optimizer()
+        dev = self.gmap.device
+        loss_val = float("nan")
+        for _ in range(iterations):
+            k = keyframes[int(torch.randint(len(keyframes), (1,), generator=self.gen))]
+            st, obs = states[k], observations[k]
+            res = render_views(self.gmap, subposes(st.pose0_cw, st.pose1_cw, obs.fractions),
+                               self.K, self.width, self.height, cfg)
+            a = torch.tensor(st.exp_a, dtype=self.gmap.dtype, device=dev)
+            b = torch.tensor(st.exp_b, dtype=self.gmap.dtype, device=dev)
+            parts = frame_loss(res, obs, self.crf, a, b, cfg, tracking=False,
+                               use_events=cfg.event_mapping, theta=self.theta, eps=self.eps)
+            total = parts.total + cfg.lambda_iso * isotropic_loss(self.gmap.scales)
+            loss_val = float(total.detach())
+            if not torch.isfinite(total):
+                break
+            opt.zero_grad(set_to_none=True)
+            total.backward()
+            opt.step()
+            with torch.no_grad():
+                self.gmap.colors.clamp_(min=0.0)
+        self.gmap.requires_grad_(False)
+        return loss_val
+
     def _prune(self, min_opacity: float) -> int:
         remove = self.gmap.opacities.detach() < min_opacity
         if bool(remove.all()):  # never empty the map entirely

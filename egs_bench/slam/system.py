@@ -200,5 +200,10 @@ class SlamSystem:
             result.reports.append(rep)
             if on_frame:
                 on_frame(rep)
+        if cfg.refine_iters > 0:
+            t_ref = time.perf_counter()
+            loss = self.mapper.refine(kf_states, observations, keyframes, cfg.refine_iters)
+            self.log(f"refined the map: {cfg.refine_iters} iterations over {len(keyframes)} "
+                     f"keyframes in {time.perf_counter() - t_ref:.1f} s (loss {loss:.4g})")
         result.keyframes = keyframes
         return result

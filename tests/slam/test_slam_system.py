@@ -285,3 +285,34 @@ def test_cli_run_set_overrides_reach_the_run_config(tiny_sequence: Path, tmp_pat
     res = CliRunner().invoke(app, ["run", "--method", "monogs", "--seq", str(tiny_sequence),
                                    "--set", "lambda_d=abc"])
     assert isinstance(res.exception, ConfigError) and "lambda_d" in str(res.exception)
+
+
+def test_final_refinement_lowers_keyframe_loss_and_keeps_poses(tiny_sequence: Path) -> None:
+    from egs_bench.slam.render_model import frame_loss, render_views, subposes
+    from egs_bench.slam.system import SlamSystem
+
+    seq = Sequence.open(tiny_sequence)
+    cfg = methods.BUILTIN["egs"].config("cpu").replace(**FAST)
+    system = SlamSystem(seq, cfg, seed=0)
+    result = system.run(len(seq))
+    states = {k: result.states[k] for k in result.keyframes}
+    obs = {k: system._obs(k) for k in result.keyframes}
+    poses = {k: (s.pose0_cw.clone(), s.pose1_cw.clone()) for k, s in states.items()}
+
+    def keyframe_loss() -> float:
+        total = 0.0
+        for k, s in states.items():
+            res = render_views(system.gmap, subposes(s.pose0_cw, s.pose1_cw, obs[k].fractions),
+                               system.K, system.cam.width, system.cam.height, cfg)
+            a, b = torch.tensor(s.exp_a), torch.tensor(s.exp_b)
+            total += frame_loss(res, obs[k], system.crf, a, b, cfg, tracking=False,
+                                use_events=True, theta=system.theta, eps=system.eps).total.item()
+        return total / len(states)
+
+    before = keyframe_loss()
+    system.mapper.refine(states, obs, result.keyframes, 60)
+    after = keyframe_loss()
+    assert after < 0.9 * before, (before, after)
+    for k, s in states.items():
+        assert torch.equal(s.pose0_cw, poses[k][0]) and torch.equal(s.pose1_cw, poses[k][1])
+    assert not system.gmap.means.requires_grad
