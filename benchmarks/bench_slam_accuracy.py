@@ -1,13 +1,17 @@
 """Accuracy benchmark: EGS-SLAM vs the MonoGS-style baseline and the ablations, side by side.
 
-Runs every method on every sequence with one preset and seed, evaluates each run with the
-default protocol (``egs_bench.eval.evaluate.evaluate_run``), and prints / writes one table
+Runs every method on every sequence with one preset and one or more seeds, evaluates each run
+with the default protocol (``egs_bench.eval.evaluate.evaluate_run``), and prints / writes one table
 (ATE RMSE in cm, PSNR / SSIM against the sharp ground truth, FPS) plus the ratios the issue
 asks for (ATE egs / monogs, PSNR egs - monogs).
 
     python benchmarks/bench_slam_accuracy.py --seq SEQ [--seq SEQ2 ...] [--preset cpu]
         [--methods egs,monogs,egs-no-events,...] [--ablation-seq SEQ] [--max-frames N]
         [--jobs J] [--out bench_out/slam] [--set KEY=VALUE ...] [--unblurred SEQ ...]
+        [--seed S [--seed S2 ...]]
+
+With several ``--seed`` the table holds the mean over the seeds and the standard deviation
+(``*_std`` columns); the ratios use the means.
 
 The table of docs/notes/slam.md and BENCHMARKS.md was made with
 
@@ -39,7 +43,7 @@ DEFAULT_METHODS = ["monogs", "egs-no-events", "egs-no-event-mapping", "egs-no-ev
                    "egs-no-crf", "egs-no-ne-loss", "egs"]
 
 
-def _run_one(job: tuple[str, str], args: argparse.Namespace) -> dict:
+def _run_one(job: tuple[str, str, int], args: argparse.Namespace) -> dict:
     """Run and evaluate one (sequence, method) pair; a failure becomes an error row."""
     if args.jobs > 1:  # share the cores between the parallel runs
         import numba
@@ -49,24 +53,44 @@ def _run_one(job: tuple[str, str], args: argparse.Namespace) -> dict:
         # 40-frame egs run 759 s instead of 204 s with two runs side by side)
         numba.set_num_threads(1)
         torch.set_num_threads(1)
-    name, method = job
+    name, method, seed = job
     seq = resolve_sequence(name)
     m = get_method(method) if method not in BUILTIN else BUILTIN[method]
     run_dir = args.out / seq.name / method
+    if len(args.seeds) > 1:
+        run_dir = run_dir / f"seed{seed}"
     extra = {"options": args.options} if args.options else {}
     try:
-        m.run(seq, run_dir, preset=args.preset, device=args.device, seed=args.seed,
+        m.run(seq, run_dir, preset=args.preset, device=args.device, seed=seed,
               max_frames=args.max_frames, progress=args.jobs == 1, **extra)
         met = evaluate_run(run_dir)
     except Exception as exc:  # one failed run must not hide the others
-        return {"sequence": seq.name, "method": method, "error": str(exc)[:80]}
+        return {"sequence": seq.name, "method": method, "seed": seed, "error": str(exc)[:80]}
     r = met.get("rendering") or {}
     return {
-        "sequence": seq.name, "method": method,
+        "sequence": seq.name, "method": method, "seed": seed,
         "ate_cm": 100 * met["ate"]["rmse_m"] if met.get("ate") else None,
         "psnr_db": r.get("psnr_db"), "ssim": r.get("ssim"),
         "fps": (met.get("speed") or {}).get("fps"),
     }
+
+
+def summarise_seeds(runs: pd.DataFrame) -> pd.DataFrame:
+    """One row per (sequence, method) in first-seen order: the mean of every metric over the
+    seeds, plus ``<metric>_std`` columns and the number of seeds when there are several."""
+    metrics = [c for c in ("ate_cm", "psnr_db", "ssim", "fps") if c in runs]
+    if runs["seed"].nunique() <= 1 or not metrics:
+        return runs.drop(columns="seed")
+    keys = ["sequence", "method"]
+    grouped = runs.groupby(keys, sort=False)
+    out = grouped[metrics].mean()
+    for c in ("ate_cm", "psnr_db"):
+        if c in metrics:
+            out[f"{c}_std"] = grouped[c].std()
+    out["seeds"] = grouped["seed"].count()
+    if "error" in runs:
+        out["error"] = grouped["error"].first()
+    return out.reset_index()
 
 
 def print_ratios(df: pd.DataFrame, unblurred: list[str], setting: str) -> None:
@@ -95,7 +119,8 @@ def main() -> None:
     ap.add_argument("--methods", default=",".join(DEFAULT_METHODS))
     ap.add_argument("--preset", default="cpu", choices=["cpu", "paper"])
     ap.add_argument("--device", default="cpu")
-    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--seed", dest="seeds", type=int, action="append", default=None,
+                    help="seed of every run (repeat for several: mean and std in the table)")
     ap.add_argument("--max-frames", type=int, default=None)
     ap.add_argument("--out", type=Path, default=Path("bench_out/slam"))
     ap.add_argument("--ablation-seq", action="append", default=None,
@@ -110,12 +135,13 @@ def main() -> None:
                          "the 'not worse than monogs by more than 10 %% ATE' rule instead")
     args = ap.parse_args()
     args.options = parse_overrides(args.overrides)
+    args.seeds = args.seeds or [0]
     if args.options and any(m not in BUILTIN for m in args.methods.split(",")):
         ap.error("--set applies to built-in methods only")
 
     ablation_seqs = set(args.ablation_seq or args.seq[:1])
-    jobs = [(name, method) for name in args.seq for method in args.methods.split(",")
-            if method in ("egs", "monogs") or name in ablation_seqs]
+    jobs = [(name, method, seed) for name in args.seq for method in args.methods.split(",")
+            if method in ("egs", "monogs") or name in ablation_seqs for seed in args.seeds]
     for name in args.seq:  # generate built-in sequences once, before parallel runs race on them
         resolve_sequence(name)
     if args.jobs > 1:
@@ -125,11 +151,14 @@ def main() -> None:
             rows = list(pool.map(_run_one, jobs, [args] * len(jobs)))
     else:
         rows = [_run_one(job, args) for job in jobs]
-    df = pd.DataFrame(rows)
+    runs = pd.DataFrame(rows)
     args.out.mkdir(parents=True, exist_ok=True)
+    runs.to_csv(args.out / "runs.csv", index=False)
+    df = summarise_seeds(runs)
     df.to_csv(args.out / "accuracy.csv", index=False)
     print(df.to_markdown(index=False, floatfmt=".3f"))
-    print_ratios(df, args.unblurred, f"preset {args.preset}, seed {args.seed}")
+    seeds = ", ".join(str(s) for s in args.seeds)
+    print_ratios(df, args.unblurred, f"preset {args.preset}, seed(s) {seeds}")
     (args.out / "accuracy.md").write_text(df.to_markdown(index=False, floatfmt=".3f") + "\n")
 
 
