@@ -13,11 +13,18 @@ asks for (ATE egs / monogs, PSNR egs - monogs).
 With several ``--seed`` the table holds the mean over the seeds and the standard deviation
 (``*_std`` columns); the ratios use the means.
 
-The table of docs/notes/slam.md and BENCHMARKS.md was made with
+The tables of docs/notes/slam.md and BENCHMARKS.md were made with
 
     EGS_BENCH_DATA=data python benchmarks/bench_slam_accuracy.py --seq demo --seq demo-fast \
         --seq livingroom-fast --seq studio-fast --seq livingroom-s --seq studio-s \
         --seq demo-sharp --unblurred demo-sharp --jobs 2
+
+(the ``cpu`` preset, half resolution, with the ablation on ``demo``) and, for the issue's
+targets at full processing resolution,
+
+    EGS_BENCH_DATA=data python benchmarks/bench_slam_accuracy.py --seq studio-fast \
+        --seq demo-fast --seq livingroom-fast --seq demo --methods egs,monogs \
+        --set resolution_scale=1.0 --jobs 2 --out bench_out/slam_full
 
 ``--set`` overrides configuration fields of every (built-in) method, as ``egs-bench run --set``.
 
