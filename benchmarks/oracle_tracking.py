@@ -68,11 +68,17 @@ def main() -> None:
     print("| method | PSNR dB | SSIM |")
     print("|:--|--:|--:|")
     for name in args.methods.split(","):
-        cfg = get_method(name).config(args.preset).replace(**options)
+        method = get_method(name)
+        if not hasattr(method, "config"):
+            raise SystemExit(f"method {name!r} is not configured by a SlamConfig; the oracle "
+                             "needs a built-in-style method")
+        cfg = method.config(args.preset).replace(**options)
         out = args.out / seq.name / name
         run_slam(seq, out, method_name=name, config=cfg, preset=args.preset,
                  max_frames=args.max_frames, progress=False)
-        r = evaluate_run(out)["rendering"]
+        r = evaluate_run(out).get("rendering")
+        if not r:
+            raise SystemExit(f"{seq.path}: no sharp ground truth, nothing to score renders against")
         print(f"| {name} | {r['psnr_db']:.2f} | {r['ssim']:.3f} |", flush=True)
 
 

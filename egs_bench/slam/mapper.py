@@ -128,9 +128,7 @@ class Mapper:
             if not torch.isfinite(total):
                 break
             total.backward()
-            opt.step()
-            with torch.no_grad():  # radiance is non-negative (MonoGS clamps colour at 0)
-                self.gmap.colors.clamp_(min=0.0)
+            self._gaussian_step(opt)
             kf_opt.step()
             if self.crf_opt is not None and not initial:
                 self.crf_opt.step()
@@ -184,11 +182,16 @@ class Mapper:
                 break
             opt.zero_grad(set_to_none=True)
             total.backward()
-            opt.step()
-            with torch.no_grad():
-                self.gmap.colors.clamp_(min=0.0)
+            self._gaussian_step(opt)
         self.gmap.requires_grad_(False)
         return loss_val
+
+    def _gaussian_step(self, opt: torch.optim.Adam) -> None:
+        """One Adam step on the Gaussians, then colours projected onto >= 0 (radiance is
+        non-negative; MonoGS clamps colour at 0)."""
+        opt.step()
+        with torch.no_grad():
+            self.gmap.colors.clamp_(min=0.0)
 
     def _prune(self, min_opacity: float) -> int:
         remove = self.gmap.opacities.detach() < min_opacity
