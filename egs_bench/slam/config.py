@@ -53,6 +53,14 @@ class SlamConfig:
     # Tracking estimates T_tau only and places T_0 on the path from the previous frame's T_tau
     # (constant velocity over the frame interval) instead of estimating both freely (paper).
     continuous_exposure: bool = False
+    # ... and the same for a frame whose exposure lasts less than this fraction of the time
+    # since the previous exposure ended (0 = never). Its blur then spans a small fraction of
+    # the inter-frame motion, below what the image resolves, so a free T_0 is barely
+    # constrained: on the unblurred `demo-sharp` (1 ms of 33 ms) at full resolution T_0 and
+    # T_tau drifted 1-3 cm apart and egs tracked worse than monogs (docs/notes/slam.md,
+    # finding 19). The built-in blurred sequences (25 of 33 ms, ratio 0.75) keep both poses
+    # free, as in the paper, whose data are all blurred.
+    short_exposure_ratio: float = 0.5
     use_edge_mask: bool = True          # (MonoGS) tracking photometric term on edges only
     edge_threshold: float = 4.0         # (MonoGS, Replica)
     edge_blocks: int | None = 32        # (MonoGS, Replica)
@@ -113,6 +121,8 @@ class SlamConfig:
             raise ConfigError(f"crf_init must be linear or srgb, got {self.crf_init!r}")
         if self.motion_model not in ("constant-position", "constant-velocity"):
             raise ConfigError(f"unknown motion_model {self.motion_model!r}")
+        if not 0 <= self.short_exposure_ratio <= 1:
+            raise ConfigError("short_exposure_ratio must be in [0, 1]")
         if not 0 < self.resolution_scale <= 1:
             raise ConfigError("resolution_scale must be in (0, 1]")
         if self.window_size < 3 or self.pose_window < 0:

@@ -153,8 +153,9 @@ class SlamSystem:
             init = predict_initial(i, states, cfg.motion_model, t0, t1, ends[i - 1],
                                    ends[i - 2] if i >= 2 else None, starts[i - 1])
             anchor = None
-            if cfg.continuous_exposure:
-                anchor = (states[-1].pose1_cw, (t0 - ends[i - 1]) / max(t1 - ends[i - 1], 1))
+            since_prev = max(t1 - ends[i - 1], 1)
+            if cfg.continuous_exposure or t1 - t0 < cfg.short_exposure_ratio * since_prev:
+                anchor = (states[-1].pose1_cw, (t0 - ends[i - 1]) / since_prev)
             tr = track_frame(self.gmap, self.crf, obs, init, self.K, self.cam.width,
                              self.cam.height, cfg, self.theta, self.eps, start_anchor=anchor)
             why = self._diverged(states[-1], tr.state, tr.loss, recent_losses)
