@@ -20,11 +20,8 @@ The tables of docs/notes/slam.md and BENCHMARKS.md were made with
         --seq demo-sharp --unblurred demo-sharp --jobs 2
 
 (the ``cpu`` preset, half resolution, with the ablation on ``demo``) and, for the issue's
-targets at full processing resolution,
-
-    EGS_BENCH_DATA=data python benchmarks/bench_slam_accuracy.py --seq studio-fast \
-        --seq demo-fast --seq livingroom-fast --seq demo --methods egs,monogs \
-        --set resolution_scale=1.0 --jobs 2 --out bench_out/slam_full
+targets at full processing resolution, the same seven sequences with
+``--set resolution_scale=1.0 --ablation-seq demo`` (run as two invocations, see BENCHMARKS.md).
 
 ``--set`` overrides configuration fields of every (built-in) method, as ``egs-bench run --set``.
 
