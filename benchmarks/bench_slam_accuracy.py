@@ -21,7 +21,8 @@ The tables of docs/notes/slam.md and BENCHMARKS.md were made with
 
 (the ``cpu`` preset, half resolution, with the ablation on ``demo``) and, for the issue's
 targets at full processing resolution, the same seven sequences with
-``--set resolution_scale=1.0 --ablation-seq demo`` (run as two invocations, see BENCHMARKS.md).
+``--set resolution_scale=1.0 --ablation-seq demo --unblurred demo-sharp`` (run as two
+invocations, see BENCHMARKS.md).
 
 ``--set`` overrides configuration fields of every (built-in) method, as ``egs-bench run --set``.
 

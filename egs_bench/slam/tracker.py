@@ -72,7 +72,7 @@ def track_frame(gmap: GaussianMap, crf: CameraResponse, obs: FrameObs, init: Fra
         start_anchor: ``(T_tau of the previous frame [4, 4], f0)``: ``T_0`` is then not free
             but tied to the motion since the previous frame, ``T_0 = T(f0)`` on the path from
             the previous ``T_tau`` to this ``T_tau`` (constant velocity across the gap between
-            exposures), so only ``T_tau`` is estimated (``continuous_exposure``).
+            exposures), so only ``T_tau`` is estimated (``continuous_exposure``, short exposures).
     """
     blur = obs.fractions.numel() > 1
     poses = torch.stack([init.pose0_cw, init.pose1_cw]).detach().clone()
