@@ -114,14 +114,9 @@ class Mapper:
                     p0, p1 = moved[2 * j], moved[2 * j + 1]
                 else:
                     p0, p1 = states[k].pose0_cw, states[k].pose1_cw
-                obs = observations[k]
-                res = render_views(self.gmap, subposes(p0, p1, obs.fractions), self.K,
-                                   self.width, self.height, cfg)
                 zero = torch.zeros((), dtype=self.gmap.dtype, device=dev)
                 a, b = exposure.get(k, (zero, zero)) if use_exposure else (zero, zero)
-                parts = frame_loss(res, obs, self.crf, a, b, cfg, tracking=False,
-                                   use_events=cfg.event_mapping, theta=self.theta, eps=self.eps)
-                total = total + parts.total
+                total = total + self._view_loss(p0, p1, observations[k], a, b)
             if not initial:
                 total = total + cfg.lambda_iso * isotropic_loss(self.gmap.scales)
             loss_val = float(total.detach())
@@ -169,14 +164,11 @@ class Mapper:
         loss_val = float("nan")
         for _ in range(iterations):
             k = keyframes[int(torch.randint(len(keyframes), (1,), generator=self.gen))]
-            st, obs = states[k], observations[k]
-            res = render_views(self.gmap, subposes(st.pose0_cw, st.pose1_cw, obs.fractions),
-                               self.K, self.width, self.height, cfg)
+            st = states[k]
             a = torch.tensor(st.exp_a, dtype=self.gmap.dtype, device=dev)
             b = torch.tensor(st.exp_b, dtype=self.gmap.dtype, device=dev)
-            parts = frame_loss(res, obs, self.crf, a, b, cfg, tracking=False,
-                               use_events=cfg.event_mapping, theta=self.theta, eps=self.eps)
-            total = parts.total + cfg.lambda_iso * isotropic_loss(self.gmap.scales)
+            total = (self._view_loss(st.pose0_cw, st.pose1_cw, observations[k], a, b)
+                     + cfg.lambda_iso * isotropic_loss(self.gmap.scales))
             loss_val = float(total.detach())
             if not torch.isfinite(total):
                 break
@@ -185,6 +177,16 @@ class Mapper:
             self._gaussian_step(opt)
         self.gmap.requires_grad_(False)
         return loss_val
+
+    def _view_loss(self, pose0_cw: torch.Tensor, pose1_cw: torch.Tensor, obs: FrameObs,
+                   exp_a: torch.Tensor, exp_b: torch.Tensor) -> torch.Tensor:
+        """Mapping loss (scalar tensor) of one keyframe rendered along its exposure trajectory
+        ``pose0_cw -> pose1_cw`` [4, 4] with exposure compensation ``exp_a, exp_b``."""
+        res = render_views(self.gmap, subposes(pose0_cw, pose1_cw, obs.fractions), self.K,
+                           self.width, self.height, self.cfg)
+        return frame_loss(res, obs, self.crf, exp_a, exp_b, self.cfg, tracking=False,
+                          use_events=self.cfg.event_mapping, theta=self.theta,
+                          eps=self.eps).total
 
     def _gaussian_step(self, opt: torch.optim.Adam) -> None:
         """One Adam step on the Gaussians, then colours projected onto >= 0 (radiance is
