@@ -40,8 +40,9 @@ from pathlib import Path
 import pandas as pd
 
 from egs_bench.eval.evaluate import evaluate_run
+from egs_bench.runs.registry import get_method
 from egs_bench.slam.config import parse_overrides
-from egs_bench.slam.methods import BUILTIN, get_method
+from egs_bench.slam.methods import BUILTIN
 from egs_bench.slam.runner import resolve_sequence
 
 DEFAULT_METHODS = ["monogs", "egs-no-events", "egs-no-event-mapping", "egs-no-event-tracking",

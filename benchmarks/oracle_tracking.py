@@ -24,9 +24,9 @@ import egs_bench.slam.system as slam_system
 from egs_bench.eval.evaluate import evaluate_run
 from egs_bench.geometry import invert_pose
 from egs_bench.geometry.se3 import interpolate_trajectory
+from egs_bench.runs.registry import get_method
 from egs_bench.slam.config import parse_overrides
 from egs_bench.slam.frames import FrameState
-from egs_bench.slam.methods import get_method
 from egs_bench.slam.runner import resolve_sequence, run_slam
 
 

@@ -44,8 +44,8 @@ def run_demo(out: str | Path, *, sequence: str = DEMO_SEQUENCE,
     from egs_bench.eval.evaluate import evaluate_run
     from egs_bench.eval.leaderboard import leaderboard
     from egs_bench.eval.plots import plot_run
-    from egs_bench.eval.run_folder import RunFolder
-    from egs_bench.slam.methods import get_method
+    from egs_bench.runs.folder import RunFolder
+    from egs_bench.runs.registry import get_method
 
     out = Path(out)
     say(f"[1/4] sequence {sequence!r} (generated on first use)")

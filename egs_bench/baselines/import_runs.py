@@ -12,8 +12,8 @@ from pathlib import Path
 
 from egs_bench.errors import InputError
 from egs_bench.eval.image_io import read_ldr_image
-from egs_bench.eval.run_folder import RunFolder
 from egs_bench.geometry import read_tum
+from egs_bench.runs.folder import RunFolder
 
 _RENDER = re.compile(r"^(\d+)\.png$")
 

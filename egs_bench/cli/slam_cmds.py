@@ -36,8 +36,9 @@ def run_cmd(
 ) -> None:
     """Run a SLAM method on a sequence and write its run folder."""
     from egs_bench.errors import ConfigError
+    from egs_bench.runs.registry import get_method
     from egs_bench.slam.config import parse_overrides
-    from egs_bench.slam.methods import ConfiguredSlamMethod, get_method
+    from egs_bench.slam.methods import ConfiguredSlamMethod
     from egs_bench.slam.runner import resolve_sequence
 
     m = get_method(method)
@@ -58,7 +59,7 @@ def run_cmd(
 
 
 def _echo_methods() -> None:
-    from egs_bench.slam.methods import available_methods
+    from egs_bench.runs.registry import available_methods
 
     for name, desc in available_methods().items():
         typer.echo(f"{name:24s} {desc}")

@@ -2,7 +2,7 @@
 
 Modules (each with one job):
 
-- :mod:`~egs_bench.eval.run_folder`: the run-folder contract between methods and evaluation;
+- :mod:`~egs_bench.runs.folder`: the run-folder contract between methods and evaluation;
 - :mod:`~egs_bench.eval.ate`: ATE with evo (association, Umeyama SE(3)/Sim(3), statistics);
 - :mod:`~egs_bench.eval.image_metrics`: PSNR (full / MonoGS-masked), SSIM (3DGS / standard);
 - :mod:`~egs_bench.eval.lpips`: LPIPS v0.1 (AlexNet / VGG16) without torchvision or downloads;

@@ -20,9 +20,9 @@ from egs_bench.errors import InputError
 from egs_bench.eval.ate import compute_ate
 from egs_bench.eval.image_metrics import psnr, psnr_masked, ssim
 from egs_bench.eval.protocols import DEFAULT_PROTOCOL, Protocol, get_protocol
-from egs_bench.eval.run_folder import RunFolder
 from egs_bench.fileio import write_text_atomic
 from egs_bench.geometry import Trajectory, read_tum
+from egs_bench.runs.folder import RunFolder
 
 METRICS_SCHEMA_VERSION = 1
 

@@ -21,7 +21,7 @@ import pandas as pd
 
 from egs_bench.errors import ConfigError, EgsBenchError, InputError
 from egs_bench.eval.protocols import DEFAULT_PROTOCOL
-from egs_bench.eval.run_folder import RunFolder, find_runs
+from egs_bench.runs.folder import RunFolder, find_runs
 
 FORMATS = ("md", "latex", "csv")
 LAYOUTS = ("sequence", "method")

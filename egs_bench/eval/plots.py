@@ -123,7 +123,7 @@ def plot_run(run_dir: str | Path, protocol: str = "egs",
     """
     from egs_bench.eval.evaluate import compute_run_ate, open_sequence
     from egs_bench.eval.protocols import get_protocol
-    from egs_bench.eval.run_folder import RunFolder
+    from egs_bench.runs.folder import RunFolder
 
     proto = get_protocol(protocol)
     run = RunFolder.open(run_dir)

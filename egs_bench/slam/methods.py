@@ -1,49 +1,20 @@
-"""Method registry: built-in EGS-SLAM variants, the MonoGS-style baseline, and user methods.
+"""The built-in SLAM methods: EGS-SLAM, its ablations and the MonoGS-style baseline.
 
-A method is any object with a ``name``, a one-line ``description`` and
-``run(sequence, out, *, preset, device, seed, max_frames, progress) -> RunFolder`` that writes
-a run folder (:mod:`egs_bench.eval.run_folder`). Built-in methods are configurations of the one
-SLAM system (:class:`ConfiguredSlamMethod`). Users add methods by
-
-* an entry point in the group ``egs_bench.methods`` (value: a method object, or a callable
-  returning one), e.g. in ``pyproject.toml``::
-
-      [project.entry-points."egs_bench.methods"]
-      my-slam = "my_pkg.slam:METHOD"
-
-* an import path given instead of a name: ``--method my_pkg.slam:METHOD``;
-* :func:`register_method` from Python.
+Each is a configuration of the one SLAM system (:class:`ConfiguredSlamMethod`), registered in
+:mod:`egs_bench.runs.registry` on import.
 """
 
 from __future__ import annotations
 
-import importlib
-from collections.abc import Callable
 from dataclasses import dataclass, field
-from importlib.metadata import entry_points
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Any
 
-from egs_bench.errors import ConfigError
+from egs_bench.runs.registry import register_builtin
 
 if TYPE_CHECKING:
     from egs_bench.datasets.sequence import Sequence
-    from egs_bench.eval.run_folder import RunFolder
-
-ENTRY_POINT_GROUP = "egs_bench.methods"
-
-
-@runtime_checkable
-class Method(Protocol):
-    """What ``egs-bench run`` needs from a method."""
-
-    name: str
-    description: str
-
-    def run(self, sequence: Sequence, out: Path, *, preset: str = "paper", device: str = "cpu",
-            seed: int = 0, max_frames: int | None = None, progress: bool = True) -> RunFolder:
-        """Process ``sequence`` and write a complete run folder at ``out``."""
-        ...
+    from egs_bench.runs.folder import RunFolder
 
 
 @dataclass
@@ -101,58 +72,5 @@ BUILTIN: dict[str, ConfiguredSlamMethod] = {
     ]
 }
 
-_USER: dict[str, Method] = {}
-
-
-def register_method(method: Method) -> None:
-    """Register a method object under ``method.name`` (overrides entry points of that name)."""
-    if not isinstance(method, Method):
-        raise ConfigError(f"{method!r} is not a method (needs name, description and run())")
-    _USER[method.name] = method
-
-
-def _instantiate(obj: Any, origin: str) -> Method:
-    if not isinstance(obj, Method) and isinstance(obj, Callable):
-        obj = obj()
-    if not isinstance(obj, Method):
-        raise ConfigError(f"{origin} does not provide a method (name, description, run())")
-    return obj
-
-
-def _entry_point_methods() -> dict[str, Any]:
-    return {ep.name: ep for ep in entry_points(group=ENTRY_POINT_GROUP)}
-
-
-def available_methods() -> dict[str, str]:
-    """Method names -> descriptions (built-in, registered and entry points)."""
-    out = {name: m.description for name, m in BUILTIN.items()}
-    for name, ep in _entry_point_methods().items():
-        out.setdefault(name, f"(plugin {ep.value})")
-    for name, m in _USER.items():
-        out[name] = m.description
-    return out
-
-
-def get_method(name: str) -> Method:
-    """Resolve a method by name, or by import path ``module:attribute``."""
-    if name in _USER:
-        return _USER[name]
-    if name in BUILTIN:
-        return BUILTIN[name]
-    eps = _entry_point_methods()
-    if name in eps:
-        try:
-            obj = eps[name].load()
-        except Exception as exc:  # a broken plugin must not crash with a deep traceback
-            raise ConfigError(f"method plugin {name!r} ({eps[name].value}) failed to load: "
-                              f"{exc}") from exc
-        return _instantiate(obj, f"entry point {name!r}")
-    if ":" in name:
-        module_name, _, attr = name.partition(":")
-        try:
-            obj = getattr(importlib.import_module(module_name), attr)
-        except (ImportError, AttributeError) as exc:
-            raise ConfigError(f"cannot import method {name!r}: {exc}") from exc
-        return _instantiate(obj, name)
-    raise ConfigError(f"unknown method {name!r}; available: {', '.join(available_methods())} "
-                      "(or give an import path module:attribute)")
+for _method in BUILTIN.values():
+    register_builtin(_method)

@@ -11,9 +11,9 @@ import torch
 from tqdm import tqdm
 
 from egs_bench.errors import ConfigError
-from egs_bench.eval.run_folder import RunFolder
 from egs_bench.fileio import write_text_atomic
 from egs_bench.geometry import invert_pose
+from egs_bench.runs.folder import RunFolder
 from egs_bench.slam.config import SlamConfig
 from egs_bench.slam.render_model import render_views
 from egs_bench.slam.system import FrameReport, SlamSystem

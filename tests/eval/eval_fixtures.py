@@ -7,8 +7,8 @@ from pathlib import Path
 import numpy as np
 
 from egs_bench.datasets.sequence import SequenceWriter
-from egs_bench.eval.run_folder import RunFolder
 from egs_bench.geometry import pose_from_tq
+from egs_bench.runs.folder import RunFolder
 
 WIDTH, HEIGHT, NUM_FRAMES, FRAME_US = 64, 48, 12, 33_333
 

@@ -10,7 +10,7 @@ import pytest
 
 from egs_bench.errors import ConfigError, InputError
 from egs_bench.eval.leaderboard import collect, leaderboard, render_markdown, to_frame
-from egs_bench.eval.run_folder import RunFolder
+from egs_bench.runs.folder import RunFolder
 
 
 def _run(root, method, seq, ate_m=None, psnr=None, ssim=None, lpips=None, protocol="egs"):

@@ -15,8 +15,9 @@ import egs_bench.cli.slam_cmds  # noqa: F401  (registers the commands)
 from egs_bench.cli.app import app
 from egs_bench.datasets.sequence import Sequence
 from egs_bench.errors import ConfigError
-from egs_bench.eval.run_folder import RunFolder
 from egs_bench.render.ply import load_ply
+from egs_bench.runs import registry
+from egs_bench.runs.folder import RunFolder
 from egs_bench.slam import methods
 from egs_bench.slam.config import cpu_preset
 from egs_bench.slam.runner import run_slam
@@ -167,7 +168,7 @@ def test_failure_marks_run_failed(tiny_sequence: Path, tmp_path: Path, monkeypat
 
 
 def test_registry_builtins_import_path_and_errors(tmp_path: Path, monkeypatch) -> None:
-    names = methods.available_methods()
+    names = registry.available_methods()
     for n in ("egs", "egs-no-event-tracking", "egs-no-event-mapping", "egs-no-events",
               "egs-no-crf", "egs-no-ne-loss", "monogs"):
         assert n in names
@@ -178,14 +179,14 @@ def test_registry_builtins_import_path_and_errors(tmp_path: Path, monkeypatch) -
         "    def run(self, sequence, out, **kw):\n        raise NotImplementedError\n"
         "def make():\n    return M()\n")
     monkeypatch.syspath_prepend(str(tmp_path))
-    m = methods.get_method("my_slam_plugin:make")
+    m = registry.get_method("my_slam_plugin:make")
     assert m.name == "user-x"
-    methods.register_method(m)
-    assert methods.available_methods()["user-x"] == "test method"
+    registry.register_method(m)
+    assert registry.available_methods()["user-x"] == "test method"
     with pytest.raises(ConfigError, match="cannot import"):
-        methods.get_method("my_slam_plugin:missing")
+        registry.get_method("my_slam_plugin:missing")
     with pytest.raises(ConfigError, match="unknown method"):
-        methods.get_method("nope")
+        registry.get_method("nope")
     with pytest.raises(ConfigError, match="unknown SLAM option"):
         cpu_preset().replace(not_a_field=1)
     with pytest.raises(ConfigError, match="n_segments"):

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from egs_bench.errors import InputError
-from egs_bench.eval.run_folder import RunFolder, find_runs
+from egs_bench.runs.folder import RunFolder, find_runs
 from egs_bench.geometry import pose_from_tq
 
 
