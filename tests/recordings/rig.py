@@ -96,7 +96,8 @@ def make_rig(root: Path, frames: int = 6) -> Rig:
         b.image("/dvs/image_raw", T0_US + (t0 + t1) // 2, truth.rgb(i), "rgb8")
         b.exposure("/dvs/exposure", T0_US + (t0 + t1) // 2, t1 - t0)
     # depth camera: at every exposure end, and a decoy 12 ms later, on its own clock
-    renderer = Renderer(pack_scene(scene), DEPTH_CAM, supersample=1)
+    # samples at pixel centres: the importer back-projects through pixel centres
+    renderer = Renderer(pack_scene(scene), DEPTH_CAM, supersample=1, jitter=False)
     for t_end in truth.t_end_us:
         for dt in (0, 12_000):
             t = int(t_end) + dt
