@@ -150,14 +150,7 @@ def load_calib(path: str | Path) -> RecordingCalib:
             non-rotations, unknown distortion models, bad sizes).
     """
     path = Path(path)
-    if not path.is_file():
-        raise InputError(path, "calibration file not found")
-    try:
-        raw = yaml.safe_load(path.read_text())
-    except yaml.YAMLError as exc:
-        raise InputError(path, f"not valid YAML ({exc})") from None
-    if not isinstance(raw, dict):
-        raise InputError(path, "expected a mapping (see `egs-bench make-calib` for a template)")
+    raw = _read_yaml(path, "calibration file")
     known = {"event_camera", "depth_camera", "frame_camera", "T_event_depth", "T_event_frame",
              "T_body_event", "time_offsets_us", "depth_scale"}
     unknown = sorted(set(raw) - known)
@@ -221,7 +214,7 @@ def camera_from_kalibr(path: str | Path, camera: str = "cam0") -> CameraModel:
     ``distortion_model``, ``distortion_coeffs``, ``resolution: [w, h]``), e.g. MVSEC's
     ``camchain-imucam-indoor_flying.yaml``. Kalibr uses OpenCV's pixel convention."""
     path = Path(path)
-    raw = _read_yaml(path)
+    raw = _read_yaml(path, "Kalibr file")
     if camera not in raw or not isinstance(raw[camera], dict):
         raise InputError(path, f"no camera {camera!r} (found: {', '.join(map(str, raw))})")
     cam = raw[camera]
@@ -239,7 +232,7 @@ def camera_from_ros_yaml(path: str | Path) -> CameraModel:
     ``camera_matrix.data``, ``camera_model`` / ``distortion_model``,
     ``distortion_coefficients.data``), e.g. VECtor's ``*_intrinsic_results.yaml``."""
     path = Path(path)
-    raw = _read_yaml(path)
+    raw = _read_yaml(path, "ROS calibration file")
     try:
         k = [float(v) for v in raw["camera_matrix"]["data"]]
         model = raw.get("distortion_model") or raw.get("camera_model") or "plumb_bob"
@@ -250,15 +243,15 @@ def camera_from_ros_yaml(path: str | Path) -> CameraModel:
         raise InputError(path, f"not a ROS camera calibration yaml ({exc})") from None
 
 
-def _read_yaml(path: Path) -> dict:
+def _read_yaml(path: Path, what: str = "file") -> dict:
     if not path.is_file():
-        raise InputError(path, "file not found")
+        raise InputError(path, f"{what} not found")
     try:
         raw = yaml.safe_load(path.read_text())
     except yaml.YAMLError as exc:
         raise InputError(path, f"not valid YAML ({exc})") from None
     if not isinstance(raw, dict):
-        raise InputError(path, "expected a mapping")
+        raise InputError(path, "expected a YAML mapping")
     return raw
 
 

@@ -431,7 +431,7 @@ def import_recording(spec: RecordingSpec, out: str | Path, *, overwrite: bool = 
                     "frames": spec.sensors.get("frames", inp.frames.label),
                     "depth": spec.sensors.get("depth", inp.depth.label),
                     "groundtruth": spec.sensors.get("groundtruth", inp.gt.label)},
-        "crf": "unknown (real camera)",
+        "crf": {"description": "unknown (a real camera; EGS-SLAM learns its response)"},
     }
     ev_stats = {"read": 0, "outside_undistorted": 0}
     valid_frac: list[float] = []

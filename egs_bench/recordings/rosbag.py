@@ -3,9 +3,9 @@
 * events: ``dvs_msgs/EventArray`` (rpg_dvs_ros: DAVIS, MVSEC) and
   ``prophesee_event_msgs/EventArray`` (VECtor) share one wire layout; their payloads are
   decoded with ``np.frombuffer`` on the raw bytes (13 bytes per event: ``<u2 x, <u2 y,
-  <u4 sec, <u4 nsec, u1 polarity``), about 30x faster than deserialising event objects, after
-  checking the bag's own message definition. Other layouts fall back to ``rosbags``'s
-  deserialiser.
+  <u4 sec, <u4 nsec, u1 polarity``) after checking the bag's own message definition (the
+  project's research note measured 200,000 events in 0.043 s this way against 1.15 s through
+  the deserialiser). Other layouts fall back to ``rosbags``'s deserialiser.
 * images: ``sensor_msgs/Image`` (frames: mono8, rgb8, bgr8, bayer; depth: 16UC1 / mono16 in
   depth units, 32FC1 in metres); stamps are the message headers' (sensor time).
 * poses: ``geometry_msgs/PoseStamped``, ``geometry_msgs/TransformStamped``,

@@ -132,7 +132,11 @@ def test_rig_depth_reprojected_into_the_event_camera(rig: Rig, imported: Path) -
 
 
 def test_rig_meta_records_source_and_sensors(imported: Path) -> None:
-    meta = Sequence.open(imported).meta
+    from egs_bench.datasets.inspect import sequence_summary
+
+    seq = Sequence.open(imported)
+    assert sequence_summary(seq)["has_sharp_gt"] is False  # `egs-bench info` reads it
+    meta = seq.meta
     assert meta["source"] == "real"
     assert meta["events_on_frame_sensor"] is True
     assert meta["depth_source"] == "rgbd"
