@@ -216,6 +216,9 @@ def evaluate_run(run_dir: str | Path, protocol: str | Protocol = DEFAULT_PROTOCO
                          "images")
     elif not run.render_indices():
         notes.append("no renders in the run folder: rendering metrics not computed")
+    elif proto.reference_images == "sharp" and not seq.has_sharp:
+        notes.append("image metrics unavailable: the sequence has no sharp ground truth (a real "
+                     "recording); ATE only")
     else:
         rendering = evaluate_renders(run, proto, seq, coverage["frames_processed"],
                                      progress=progress)
