@@ -83,7 +83,8 @@ class LeakyPiecewiseLinearCRF(CameraResponse):
         init: ``"srgb"`` (nodes on the sRGB curve) or ``"linear"`` (identity on [0, 1]).
     """
 
-    def __init__(self, n_nodes: int = 16, alpha: float = 0.01, init: str = "linear") -> None:
+    def __init__(self, n_nodes: int = 16, alpha: float = 0.01, init: str = "linear",
+                 device: str | torch.device = "cpu") -> None:
         super().__init__()
         if n_nodes < 2:
             raise ConfigError(f"CRF needs at least 2 control nodes, got {n_nodes}")
@@ -97,8 +98,9 @@ class LeakyPiecewiseLinearCRF(CameraResponse):
             raise ConfigError(f"unknown CRF init {init!r} (use 'srgb' or 'linear')")
         gaps = np.maximum(np.diff(hdr), 1e-6)
         gaps = gaps / gaps.sum()
-        self.gap_logits = nn.Parameter(torch.tensor(np.log(gaps), dtype=torch.float32))
-        self.register_buffer("levels", torch.tensor(levels, dtype=torch.float32))
+        self.gap_logits = nn.Parameter(torch.tensor(np.log(gaps), dtype=torch.float32,
+                                                    device=device))
+        self.register_buffer("levels", torch.tensor(levels, dtype=torch.float32, device=device))
 
     def nodes(self) -> torch.Tensor:
         """HDR inputs of the control nodes [N], strictly increasing from 0 to 1."""
@@ -173,11 +175,12 @@ def leaky_piecewise_linear(hdr: torch.Tensor, nodes: torch.Tensor, levels: torch
     return torch.where(hdr < 0, low, torch.where(hdr > 1, high, mid))
 
 
-def make_crf(kind: str, n_nodes: int = 16, alpha: float = 0.01, init: str = "linear"
+def make_crf(kind: str, n_nodes: int = 16, alpha: float = 0.01, init: str = "linear",
+             device: str | torch.device = "cpu"
              ) -> CameraResponse:
     """Factory: ``"learnable"`` (initialised ``init``), ``"srgb"`` (fixed) or ``"identity"``."""
     if kind == "learnable":
-        return LeakyPiecewiseLinearCRF(n_nodes, alpha, init)
+        return LeakyPiecewiseLinearCRF(n_nodes, alpha, init, device)
     if kind == "srgb":
         return FixedSRGBCRF()
     if kind == "identity":
