@@ -50,19 +50,20 @@ class Mapper:
         self.crf_opt = None
         crf_params = list(crf.parameters())
         if crf_params:
-            self.crf_opt = torch.optim.Adam(crf_params, lr=cfg.lr_crf, foreach=True)
+            self.crf_opt = torch.optim.Adam(crf_params, lr=cfg.lr_crf, fused=True)
 
     def _gaussian_optimizer(self) -> torch.optim.Adam:
         g, c = self.gmap, self.cfg
         g.requires_grad_(True)
-        fused = g.device.type == "cuda"
+        # Fused: one kernel per step for all tensors, and the step counters stay on the device
+        # (the for-each and per-tensor forms read them on the host: a sync per tensor).
         return torch.optim.Adam([
             {"params": [g.means], "lr": c.lr_means},
             {"params": [g.colors], "lr": c.lr_colors},
             {"params": [g.opacity_logits], "lr": c.lr_opacity},
             {"params": [g.log_scales], "lr": c.lr_scales},
             {"params": [g.quats], "lr": c.lr_quats},
-        ], eps=1e-15, fused=fused or None, foreach=None if fused else True)
+        ], eps=1e-15, fused=True)
 
     def _targets(self, k: int, obs: FrameObs) -> LossTargets:
         if k not in self.targets:
