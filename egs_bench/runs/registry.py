@@ -43,7 +43,7 @@ class Method(Protocol):
     name: str
     description: str
 
-    def run(self, sequence: Sequence, out: Path, *, preset: str = "paper", device: str = "cpu",
+    def run(self, sequence: Sequence, out: Path, *, preset: str = "auto", device: str = "auto",
             seed: int = 0, max_frames: int | None = None, progress: bool = True) -> RunFolder:
         """Process ``sequence`` and write a complete run folder at ``out``."""
         ...
