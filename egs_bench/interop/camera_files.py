@@ -15,7 +15,7 @@ Every system below reads its intrinsics from a configuration file, not from the 
 
 **Pixel convention.** egs-bench stores gsplat's convention (pixel ``u`` has its centre at
 ``u + 0.5``); OpenCV, ORB-SLAM, MonoGS/3DGS and Replica put it at the integer ``u``. The files
-therefore hold ``cx - 0.5`` and ``cy - 0.5`` (:meth:`ExternalCamera.from_intrinsics`).
+therefore hold ``cx - 0.5`` and ``cy - 0.5`` (:func:`opencv_camera`).
 
 The ORB parameters are those of ORB-SLAM2's ``TUM1.yaml``; ``Camera.bf`` / ``Stereo.b``
 (the virtual baseline of RGB-D ORB-SLAM) is 0.08 m, so with ``ThDepth: 40`` points up to
@@ -24,7 +24,7 @@ The ORB parameters are those of ORB-SLAM2's ``TUM1.yaml``; ``Camera.bf`` / ``Ste
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import replace
 
 import yaml
 
@@ -36,27 +36,10 @@ _HEADER = "# Written by egs-bench export for sequence {name!r} ({w}x{h}); pixel 
           "integer coordinates (egs-bench's cx, cy minus 0.5).\n"
 
 
-@dataclass(frozen=True)
-class ExternalCamera:
-    """A distortion-free pinhole camera in the OpenCV convention (pixel centre at integer u).
-
-    Attributes:
-        fx, fy, cx, cy: intrinsics in pixels.
-        width, height: image size in pixels.
-    """
-
-    fx: float
-    fy: float
-    cx: float
-    cy: float
-    width: int
-    height: int
-
-    @staticmethod
-    def from_intrinsics(intr: Intrinsics) -> ExternalCamera:
-        """Convert egs-bench intrinsics (pixel centre at ``u + 0.5``)."""
-        return ExternalCamera(float(intr.fx), float(intr.fy), float(intr.cx) - 0.5,
-                              float(intr.cy) - 0.5, int(intr.width), int(intr.height))
+def opencv_camera(intr: Intrinsics) -> Intrinsics:
+    """The same camera in the OpenCV convention (pixel centre at integer ``u``): ``cx - 0.5``,
+    ``cy - 0.5``; egs-bench's :class:`Intrinsics` put it at ``u + 0.5``."""
+    return replace(intr, cx=float(intr.cx) - 0.5, cy=float(intr.cy) - 0.5)
 
 
 def _real(v: float) -> str:
@@ -65,11 +48,11 @@ def _real(v: float) -> str:
     return text if ("." in text or "e" in text or "inf" in text or "nan" in text) else text + ".0"
 
 
-def _header(cam: ExternalCamera, name: str) -> str:
+def _header(cam: Intrinsics, name: str) -> str:
     return _HEADER.format(name=name, w=cam.width, h=cam.height)
 
 
-def monogs_config(cam: ExternalCamera, dataset_path: str, *, dataset_type: str, depth_scale: float,
+def monogs_config(cam: Intrinsics, dataset_path: str, *, dataset_type: str, depth_scale: float,
                   name: str) -> str:
     """A MonoGS RGB-D config (``python slam.py --config FILE --eval`` from the MonoGS checkout).
 
@@ -125,7 +108,7 @@ def _orb_block(lines: list[str]) -> None:
     ]
 
 
-def orbslam2_settings(cam: ExternalCamera, *, fps: float, depth_scale: float, name: str) -> str:
+def orbslam2_settings(cam: Intrinsics, *, fps: float, depth_scale: float, name: str) -> str:
     """ORB-SLAM2 RGB-D settings (``./Examples/RGB-D/rgbd_tum VOC THIS_FILE DIR ASSOC``).
 
     ``Camera.RGB: 0``: ``rgbd_tum`` loads images with ``cv::imread``, i.e. in BGR order.
@@ -145,7 +128,7 @@ def orbslam2_settings(cam: ExternalCamera, *, fps: float, depth_scale: float, na
     return "\n".join(lines) + "\n"
 
 
-def orbslam3_settings(cam: ExternalCamera, *, fps: float, depth_scale: float, name: str) -> str:
+def orbslam3_settings(cam: Intrinsics, *, fps: float, depth_scale: float, name: str) -> str:
     """ORB-SLAM3 ``File.version "1.0"`` RGB-D settings, as Photo-SLAM's ``tum_rgbd`` reads
     them (``Camera.RGB: 1``: Photo-SLAM converts the BGR image to RGB before tracking; no
     distortion keys, so ORB-SLAM3 does not undistort)."""
@@ -163,14 +146,14 @@ def orbslam3_settings(cam: ExternalCamera, *, fps: float, depth_scale: float, na
     return "\n".join(lines) + "\n"
 
 
-def rampvo_k_yaml(cam: ExternalCamera, *, name: str) -> str:
+def rampvo_k_yaml(cam: Intrinsics, *, name: str) -> str:
     """RampVO's ``K.yaml`` (read by ``evaluate.py:set_global_params``)."""
     data = {"cam0": {"intrinsics": [cam.fx, cam.fy, cam.cx, cam.cy],
                      "resolution": [cam.width, cam.height]}}
     return _header(cam, name) + yaml.safe_dump(data, sort_keys=False)
 
 
-def nice_slam_config(cam: ExternalCamera, input_folder: str, *, depth_scale: float,
+def nice_slam_config(cam: Intrinsics, input_folder: str, *, depth_scale: float,
                      bound: list[list[float]], name: str) -> str:
     """A NICE-SLAM scene config (``python run.py THIS_FILE`` from the NICE-SLAM checkout);
     ``bound`` [[xmin, xmax], [ymin, ymax], [zmin, zmax]] in metres encloses the scene."""

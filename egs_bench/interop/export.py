@@ -63,9 +63,9 @@ from egs_bench.errors import ConfigError, InputError
 from egs_bench.fileio import atomic_path, to_plain
 from egs_bench.geometry import write_tum
 from egs_bench.interop.camera_files import (
-    ExternalCamera,
     monogs_config,
     nice_slam_config,
+    opencv_camera,
     orbslam2_settings,
     orbslam3_settings,
     rampvo_k_yaml,
@@ -175,7 +175,7 @@ def _depth_png(seq, i: int, dst: Path, scale: float) -> int:
 
 def _manifest(tmp: Path, seq, fmt: str, n: int, retimed: bool, files: dict[str, str],
               extra: dict[str, Any], notes: list[str]) -> None:
-    cam = ExternalCamera.from_intrinsics(seq.intrinsics)
+    cam = opencv_camera(seq.intrinsics)
     data = {
         "egs_bench_export": 1,
         "format": fmt,
@@ -220,7 +220,7 @@ def _export_tum(seq, tmp: Path, n: int, t_export: np.ndarray, out_abs: Path, pro
         f"{t} {r} {t} {d}\n" for t, r, d in zip(stamps, rgb_names, depth_names, strict=True)))
     write_tum(tmp / "groundtruth.txt", t_export, seq.poses[:n])
     _write_index_map(tmp / INDEX_MAP, t_export, seq.timestamps_s[:n], rgb_names, depth_names)
-    cam = ExternalCamera.from_intrinsics(seq.intrinsics)
+    cam = opencv_camera(seq.intrinsics)
     fps = 1.0 / float(np.median(np.diff(t_export))) if n > 1 else 30.0
     files = {
         "monogs": "monogs_rgbd.yaml", "orbslam2": "orbslam2_rgbd.yaml",
@@ -287,7 +287,7 @@ def _export_replica(seq, tmp: Path, n: int, t_export: np.ndarray, out_abs: Path,
     _write_index_map(tmp / INDEX_MAP, t_export, seq.timestamps_s[:n],
                      [f"results/frame{i:06d}.jpg" for i in range(n)],
                      [f"results/depth{i:06d}.png" for i in range(n)])
-    cam = ExternalCamera.from_intrinsics(seq.intrinsics)
+    cam = opencv_camera(seq.intrinsics)
     files = {"monogs": "monogs_replica.yaml", "nice_slam": "nice_slam.yaml",
              "camera": "cam_params.json"}
     (tmp / files["monogs"]).write_text(monogs_config(
@@ -315,7 +315,7 @@ def _export_eds(seq, tmp: Path, n: int, t_export: np.ndarray) -> _Written:
     (tmp / "timestamps.txt").write_text("".join(f"{t}\n" for t in t_us))
     write_tum(tmp / "pose_left.txt", t_export, seq.poses[:n])
     _write_index_map(tmp / INDEX_MAP, t_export, seq.timestamps_s[:n], names, [""] * n)
-    cam = ExternalCamera.from_intrinsics(seq.intrinsics)
+    cam = opencv_camera(seq.intrinsics)
     (tmp / "K.yaml").write_text(rampvo_k_yaml(cam, name=seq.name))
     stream = seq.events  # written with absolute microsecond stamps, like timestamps.txt
     count = 0

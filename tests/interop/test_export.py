@@ -19,6 +19,7 @@ import numpy as np
 import pytest
 import yaml
 from PIL import Image
+
 from egs_bench.datasets.sequence import Sequence
 from egs_bench.errors import InputError
 from egs_bench.interop.export import export_sequence, read_export_index
