@@ -419,28 +419,6 @@ class ExportIndex:
     t_sequence_s: np.ndarray
     rgb: tuple[str, ...]
 
-    def frames_at(self, stamps_s: np.ndarray, source: Path, tol_s: float = 5e-4) -> np.ndarray:
-        """Export frame indices of time stamps written by an external system (nearest export
-        stamp within ``tol_s``).
-
-        Raises:
-            InputError: naming ``source``, for a stamp with no export frame that close.
-        """
-        stamps = np.asarray(stamps_s, dtype=np.float64)
-        order = np.argsort(self.t_export_s)
-        ts = self.t_export_s[order]
-        k = np.clip(np.searchsorted(ts, stamps), 1, len(ts) - 1) if len(ts) > 1 else \
-            np.zeros(len(stamps), int)
-        if len(ts) > 1:
-            left, right = ts[k - 1], ts[k]
-            k = np.where(np.abs(stamps - left) <= np.abs(stamps - right), k - 1, k)
-        bad = np.abs(ts[k] - stamps) > tol_s
-        if bad.any():
-            j = int(np.argmax(bad))
-            raise InputError(source, f"time stamp {stamps[j]:.6f} s matches no frame of the "
-                                     f"export {self.path} (nearest {ts[k[j]]:.6f} s)")
-        return order[k]
-
 
 def read_export_index(path: str | Path) -> ExportIndex:
     """Read an export folder's ``egs_export.yaml`` and ``index_map.csv``.
