@@ -214,3 +214,43 @@ def test_edi_sequence_view(blurred_plane: Path, tmp_path: Path) -> None:
     (no_events / "meta.yaml").write_text(yaml.safe_dump(meta))
     with pytest.raises(InputError, match="needs events"):
         EdiSequence(Sequence.open(no_events))
+
+
+@pytest.fixture(scope="module")
+def tiny_room(tmp_path_factory) -> Path:
+    """6 frames, 64x48, of the synthetic office (a 3-D camera path, which ATE alignment needs;
+    generation ~10 s)."""
+    from egs_bench.datasets.synthetic import make_synthetic
+
+    return make_synthetic("office", tmp_path_factory.mktemp("room") / "office", frames=6,
+                          width=64, height=48, speed=0.4, seed=1, progress=False)
+
+
+@pytest.mark.slow
+def test_monogs_edi_is_a_registered_method_writing_a_normal_run(tiny_room: Path,
+                                                                 tmp_path: Path) -> None:
+    """Listed, runs the monogs configuration on EDI frames, records the EDI settings and the
+    per-frame thresholds, and is evaluated like any run (against the original sequence)."""
+    from egs_bench.datasets.sequence import Sequence
+    from egs_bench.eval.evaluate import evaluate_run
+    from egs_bench.runs.folder import RunFolder
+    from egs_bench.runs.registry import available_methods, get_method
+    from egs_bench.slam.methods import BUILTIN
+
+    assert "monogs-edi" in available_methods()
+    method = get_method("monogs-edi")
+    assert method.overrides == BUILTIN["monogs"].overrides
+    fast = dict(resolution_scale=1.0, init_iters=10, tracking_iters=10, mapping_iters=2,
+                kf_interval=2, pcd_downsample_init=2, pcd_downsample=4)
+    run = method.run(Sequence.open(tiny_room), tmp_path / "run", preset="cpu",
+                     progress=False, options=fast)
+    run = RunFolder.open(run.path)
+    assert run.method == "monogs-edi" and run.read_status().state == "done"
+    assert run.sequence_path == tiny_room.resolve()
+    cfg = run.read_config()
+    assert cfg["edi"]["c"] is None and cfg["edi"]["grid"] == EdiConfig().grid
+    assert cfg["slam"]["n_segments"] == 1 and cfg["slam"]["event_tracking"] is False
+    rows = (run.path / "edi_frames.csv").read_text().splitlines()
+    assert len(rows) == 1 + 6 and all(float(r.split(",")[1]) > 0 for r in rows[1:])
+    metrics = evaluate_run(run.path)
+    assert metrics["ate"]["n_matched"] == 6 and metrics["rendering"]["n_frames"] == 2
