@@ -190,6 +190,6 @@ def import_run_cmd(
                                   sequence_path=sequence_path, renders_dir=renders,
                                   render_ply=render_ply, quaternion=quaternion,
                                   overwrite=overwrite)
-    est = run.estimate
-    _out.print(f"imported {run.method} on {run.sequence_name} into {run.path} "
-               f"(poses: {est['poses']}, renders: {est['renders']})")
+    est = run.info.get("estimate")
+    what = f" (poses: {est['poses']}, renders: {est['renders']})" if est else ""
+    _out.print(f"imported {run.method} on {run.sequence_name} into {run.path}{what}")
