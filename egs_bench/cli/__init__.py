@@ -28,6 +28,7 @@ _COMMAND_MODULES = (
     "render_cmds",
     "slam_cmds",
     "interop_cmds",
+    "recording_cmds",
 )
 
 

@@ -265,6 +265,9 @@ def evaluate_run(run_dir: str | Path, protocol: str | Protocol = DEFAULT_PROTOCO
                          "images")
     elif not run.render_indices():
         notes.append("no renders in the run folder: rendering metrics not computed")
+    elif proto.reference_images == "sharp" and not seq.has_sharp:
+        notes.append("image metrics unavailable: the sequence has no sharp ground truth (a real "
+                     "recording); ATE only")
     elif partial:
         notes.append(partial)
     else:

@@ -13,6 +13,8 @@ differentiable monotone piecewise-linear curve with learnable knots.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 import torch
 from torch import nn
@@ -45,6 +47,11 @@ class CameraResponse(nn.Module):
 
     def inverse(self, ldr: torch.Tensor) -> torch.Tensor:  # pragma: no cover - interface
         raise NotImplementedError
+
+    def frozen(self) -> Callable[[torch.Tensor], torch.Tensor]:
+        """The response with its parameters fixed (differentiable in the input only), for
+        loops that do not optimise it (tracking). Parameter-free responses return themselves."""
+        return self
 
 
 class IdentityCRF(CameraResponse):
@@ -101,6 +108,9 @@ class LeakyPiecewiseLinearCRF(CameraResponse):
         """LDR values, same shape as ``hdr``."""
         return leaky_piecewise_linear(hdr, self.nodes(), self.levels, self.alpha)
 
+    def frozen(self) -> FrozenLeakyCurve:
+        return FrozenLeakyCurve(self.nodes().detach(), self.levels, self.alpha)
+
     @torch.no_grad()
     def inverse(self, ldr: torch.Tensor) -> torch.Tensor:
         """HDR values mapping to ``ldr`` (exact inverse of the curve; no gradient)."""
@@ -114,6 +124,26 @@ class LeakyPiecewiseLinearCRF(CameraResponse):
         high_arg = (1 + self.alpha - ldr).clamp_min(1e-6)
         high = (self.alpha / high_arg) ** 2
         return torch.where(ldr < 0, low, torch.where(ldr > 1, high, mid))
+
+
+class FrozenLeakyCurve:
+    """:func:`leaky_piecewise_linear` with fixed nodes: per-segment slopes and intercepts are
+    computed once, so a call is a bucket search, two gathers and the two leaky ends."""
+
+    def __init__(self, nodes: torch.Tensor, levels: torch.Tensor, alpha: float) -> None:
+        x, y = nodes.detach(), levels.to(nodes.dtype)
+        self.inner = x[1:-1].contiguous()  # segment j covers [x_j, x_{j+1})
+        self.slope = (y[1:] - y[:-1]) / (x[1:] - x[:-1])
+        self.intercept = y[:-1] - x[:-1] * self.slope
+        self.alpha = float(alpha)
+
+    def __call__(self, hdr: torch.Tensor) -> torch.Tensor:
+        """LDR values [...] of HDR values [...] (differentiable in ``hdr``)."""
+        inside = hdr.clamp(0.0, 1.0)
+        idx = torch.bucketize(inside.detach(), self.inner.to(hdr.dtype), right=True)
+        mid = inside * self.slope.to(hdr.dtype)[idx] + self.intercept.to(hdr.dtype)[idx]
+        high = (1 + self.alpha) - self.alpha * torch.rsqrt(hdr.clamp_min(1.0))
+        return torch.where(hdr < 0, self.alpha * hdr, torch.where(hdr > 1, high, mid))
 
 
 def nodes_from_logits(gap_logits: torch.Tensor) -> torch.Tensor:

@@ -69,8 +69,7 @@ def run_slam(seq, out: str | Path, *, method_name: str, config: SlamConfig, pres
         result = system.run(n, on_frame=on_frame)
         total_wall = time.perf_counter() - t_start
         bar.close()
-        poses_wc = np.stack([invert_pose(s.pose1_cw.detach().cpu().numpy())
-                             for s in result.states])
+        poses_wc = np.stack([invert_pose(s.pose1_cw) for s in result.states])
         run.write_trajectory(np.asarray(seq.timestamps_s[:n]), poses_wc)
         run.write_keyframes(result.keyframes)
         render_fps = _write_renders(run, system, result, seq)
