@@ -23,8 +23,8 @@ Every export also writes ``index_map.csv`` (export frame -> sequence frame and b
 stamps) and ``egs_export.yaml`` (what was written and why), which ``egs-bench import-run``
 reads to map an external system's output back onto the sequence.
 
-Pitfalls handled (each checked in ``tests/interop/`` against the consuming loader's parsing
-logic):
+Pitfalls handled (each checked in ``tests/interop/test_interop_export.py`` against the
+consuming loader's parsing logic):
 
 * MonoGS' ``TUMParser`` reads ``groundtruth.txt`` with ``skiprows=1`` (the first line is lost
   even if it is a pose): the file starts with a comment line. It keeps a frame only when it is
@@ -369,6 +369,8 @@ def export_sequence(sequence, out: str | Path, *, fmt: str, overwrite: bool = Fa
 
     if fmt not in FORMATS:
         raise ConfigError(f"unknown export format {fmt!r}; choose one of {', '.join(FORMATS)}")
+    if retime not in ("auto", "never", "always"):
+        raise ConfigError(f"--retime must be auto, never or always, not {retime!r}")
     seq = sequence if isinstance(sequence, Sequence) else Sequence.open(sequence)
     if fmt == "eds" and not seq.has_events:
         raise InputError(seq.path, "has no events; the eds layout (RampVO) needs them")

@@ -116,7 +116,7 @@ def test_orbslam2_keyframe_file_alone_is_marked(seq: Sequence, export: Path,
 
 
 def test_retimed_export_maps_back_to_sequence_stamps(seq_path: Path, tmp_path: Path) -> None:
-    from test_export import _retimed_copy
+    from test_interop_export import _retimed_copy
 
     fast = Sequence.open(_retimed_copy(seq_path, tmp_path / "fast", 20_000))
     exp = export_sequence(fast, tmp_path / "exp", fmt="tum-rgbd")
@@ -221,7 +221,7 @@ def test_monogs_result_folder(seq: Sequence, export: Path, tmp_path: Path) -> No
 def test_monogs_uids_follow_its_frame_dropping(seq_path: Path, tmp_path: Path) -> None:
     """Exported without retiming at 50 fps, MonoGS keeps frames 0, 2, 4, ...: uid k is frame
     2k (its TUMParser's 1/32 s rule)."""
-    from test_export import _retimed_copy, monogs_tum_parser
+    from test_interop_export import _retimed_copy, monogs_tum_parser
 
     fast = Sequence.open(_retimed_copy(seq_path, tmp_path / "fast", 20_000))
     exp = export_sequence(fast, tmp_path / "exp", fmt="tum-rgbd", retime="never").path
