@@ -83,7 +83,8 @@ class LeakyPiecewiseLinearCRF(CameraResponse):
         init: ``"srgb"`` (nodes on the sRGB curve) or ``"linear"`` (identity on [0, 1]).
     """
 
-    def __init__(self, n_nodes: int = 16, alpha: float = 0.01, init: str = "linear") -> None:
+    def __init__(self, n_nodes: int = 16, alpha: float = 0.01, init: str = "linear",
+                 device: str | torch.device = "cpu") -> None:
         super().__init__()
         if n_nodes < 2:
             raise ConfigError(f"CRF needs at least 2 control nodes, got {n_nodes}")
@@ -97,8 +98,9 @@ class LeakyPiecewiseLinearCRF(CameraResponse):
             raise ConfigError(f"unknown CRF init {init!r} (use 'srgb' or 'linear')")
         gaps = np.maximum(np.diff(hdr), 1e-6)
         gaps = gaps / gaps.sum()
-        self.gap_logits = nn.Parameter(torch.tensor(np.log(gaps), dtype=torch.float32))
-        self.register_buffer("levels", torch.tensor(levels, dtype=torch.float32))
+        self.gap_logits = nn.Parameter(torch.tensor(np.log(gaps), dtype=torch.float32,
+                                                    device=device))
+        self.register_buffer("levels", torch.tensor(levels, dtype=torch.float32, device=device))
 
     def nodes(self) -> torch.Tensor:
         """HDR inputs of the control nodes [N], strictly increasing from 0 to 1."""
@@ -173,13 +175,61 @@ def leaky_piecewise_linear(hdr: torch.Tensor, nodes: torch.Tensor, levels: torch
     return torch.where(hdr < 0, low, torch.where(hdr > 1, high, mid))
 
 
-def make_crf(kind: str, n_nodes: int = 16, alpha: float = 0.01, init: str = "linear"
+def make_crf(kind: str, n_nodes: int = 16, alpha: float = 0.01, init: str = "linear",
+             device: str | torch.device = "cpu"
              ) -> CameraResponse:
     """Factory: ``"learnable"`` (initialised ``init``), ``"srgb"`` (fixed) or ``"identity"``."""
     if kind == "learnable":
-        return LeakyPiecewiseLinearCRF(n_nodes, alpha, init)
+        return LeakyPiecewiseLinearCRF(n_nodes, alpha, init, device)
     if kind == "srgb":
         return FixedSRGBCRF()
     if kind == "identity":
         return IdentityCRF()
     raise ConfigError(f"unknown CRF kind {kind!r} (use learnable, srgb or identity)")
+
+
+def crf_to_dict(crf: CameraResponse) -> dict:
+    """Plain-data description of ``crf`` (JSON-ready) from which :func:`crf_from_dict` rebuilds
+    the same curve bit for bit.
+
+    ``{"kind": "identity" | "srgb"}``, or for the learnable curve ``{"kind": "learnable",
+    "alpha", "gap_logits" [N-1] (the raw parameters), "nodes_hdr" [N] and "levels_ldr" [N]}``:
+    ``nodes_hdr``/``levels_ldr`` are the control points (HDR input, LDR output) for readers
+    outside egs-bench; inside [0, 1] the curve interpolates them linearly, below 0 it is
+    ``alpha * x``, above 1 ``1 + alpha - alpha / sqrt(x)``.
+    """
+    if isinstance(crf, LeakyPiecewiseLinearCRF):
+        with torch.no_grad():
+            return {"kind": "learnable", "alpha": crf.alpha,
+                    "gap_logits": [float(v) for v in crf.gap_logits.detach().cpu()],
+                    "nodes_hdr": [float(v) for v in crf.nodes().detach().cpu()],
+                    "levels_ldr": [float(v) for v in crf.levels.detach().cpu()]}
+    if isinstance(crf, FixedSRGBCRF):
+        return {"kind": "srgb"}
+    if isinstance(crf, IdentityCRF):
+        return {"kind": "identity"}
+    raise ConfigError(f"cannot describe a CRF of type {type(crf).__name__}")
+
+
+def crf_from_dict(data: dict) -> CameraResponse:
+    """The CRF described by :func:`crf_to_dict` (float32 parameters, as during the run).
+
+    Raises:
+        ConfigError: unknown kind or malformed parameters.
+    """
+    kind = data.get("kind") if isinstance(data, dict) else None
+    if kind in ("identity", "srgb"):
+        return make_crf(kind)
+    if kind != "learnable":
+        raise ConfigError(f"unknown CRF kind {kind!r} (use learnable, srgb or identity)")
+    try:
+        logits = np.asarray(data["gap_logits"], dtype=np.float32)
+        alpha = float(data["alpha"])
+    except (KeyError, TypeError, ValueError) as exc:
+        raise ConfigError(f"learnable CRF needs 'alpha' and 'gap_logits' ({exc})") from None
+    if logits.ndim != 1 or len(logits) < 1 or not np.isfinite(logits).all():
+        raise ConfigError("learnable CRF 'gap_logits' must be a non-empty list of numbers")
+    crf = LeakyPiecewiseLinearCRF(len(logits) + 1, alpha)
+    with torch.no_grad():
+        crf.gap_logits.copy_(torch.from_numpy(logits))
+    return crf

@@ -88,7 +88,9 @@ def render_views(gmap: GaussianMap, viewmats: torch.Tensor | np.ndarray, K: torc
                  width: int, height: int, cfg: SlamConfig, *, visibility: bool = False):
     """Render world-to-camera ``viewmats`` [C, 4, 4] (any float dtype, tensor or array) with the
     map's dtype and device; returns the RasterResult (``visibility`` only when asked)."""
-    vm = torch.as_tensor(viewmats).to(device=gmap.device, dtype=gmap.dtype)
+    if isinstance(viewmats, np.ndarray):
+        viewmats = torch.from_numpy(viewmats)
+    vm = viewmats.to(device=gmap.device, dtype=gmap.dtype)
     ks = K.to(gmap.dtype).expand(vm.shape[0], 3, 3)
     return gmap.render(vm, ks, width, height, near_plane=cfg.near_plane, backend=cfg.backend,
                        visibility=visibility)

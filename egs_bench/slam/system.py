@@ -64,7 +64,7 @@ class SlamSystem:
         self.rng = np.random.default_rng(seed)  # random mapping views
         torch.manual_seed(seed)
         self.gmap = GaussianMap.empty(torch.float32, self.device)
-        self.crf = make_crf(cfg.crf, cfg.crf_nodes, cfg.crf_alpha, cfg.crf_init).to(self.device)
+        self.crf = make_crf(cfg.crf, cfg.crf_nodes, cfg.crf_alpha, cfg.crf_init, self.device)
         if cfg.theta is not None:
             self.theta = (float(cfg.theta), float(cfg.theta))
         else:
