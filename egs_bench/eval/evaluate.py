@@ -135,6 +135,12 @@ def _estimate_notes(run: RunFolder, protocol: Protocol, ate: dict[str, Any],
     elif covered is not None and protocol.ate_frames == "all" and ate["n_matched"] < covered:
         notes.append(f"ATE over {ate['n_matched']} of {covered} frames: the estimate has no "
                      "pose for the others")
+    if est["poses"] != "all":
+        notes.append(f"RPE per frame pairs consecutive poses of the estimate ({est['poses']}), "
+                     "not consecutive frames")
+    if est["scale_free"]:
+        notes.append("RPE translation is in the estimate's own scale (not aligned): not "
+                     "comparable with metric estimates")
     return notes
 
 

@@ -113,6 +113,8 @@ def test_orbslam2_keyframe_file_alone_is_marked(seq: Sequence, export: Path,
     assert m["ate"]["n_matched"] == 3 and m["ate"]["estimate_poses"] == "keyframes"
     assert any("ATE over 3 of 9 frames: the estimate holds keyframes poses only" in n
                for n in m["notes"])
+    assert any("RPE per frame pairs consecutive poses of the estimate (keyframes)" in n
+               for n in m["notes"])
 
 
 def test_retimed_export_maps_back_to_sequence_stamps(seq_path: Path, tmp_path: Path) -> None:
@@ -311,6 +313,7 @@ def test_rampvo_estimate(seq: Sequence, tmp_path: Path) -> None:
     assert m["ate"]["rmse_m"] < 1e-6
     assert any("sim3 alignment instead of the protocol's se3" in n for n in m["notes"])
     assert any("ATE over 6 of 10 frames" in n for n in m["notes"])
+    assert any("RPE translation is in the estimate's own scale" in n for n in m["notes"])
     # the labelled order (w first) gives other rotations: the option matters
     run2 = import_external_run(tmp_path / "stamped_traj_estimate.txt", tmp_path / "run2",
                                fmt="rampvo", export_dir=eds, quaternion="wxyz")
