@@ -33,7 +33,7 @@ ENTRY_POINT_GROUP = "egs_bench.methods"
 
 # Modules whose import registers the built-in methods (kept as names so that importing the
 # registry does not import torch).
-_BUILTIN_MODULES = ("egs_bench.slam.methods",)
+_BUILTIN_MODULES = ("egs_bench.slam.methods", "egs_bench.baselines.monogs_edi")
 
 
 @runtime_checkable
