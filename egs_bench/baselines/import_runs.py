@@ -39,10 +39,11 @@ def import_tum_run(
         sequence_path: canonical sequence folder (ground truth and reference images), or
         groundtruth: a TUM ground-truth file (for sequences that exist only as trajectories).
         renders_dir: folder of ``<frame index>.png`` renders to copy (any zero padding).
-        overwrite: replace an existing run folder.
+        overwrite: replace an existing run folder written by egs-bench.
 
     Raises:
         InputError: unreadable estimate / ground truth, or badly named renders.
+        OutputError: ``out_dir`` exists (without ``overwrite``) or is (or contains) an input.
     """
     if sequence_path is None and groundtruth is None:
         raise InputError(out_dir, "an import needs a sequence folder or a ground-truth file")
@@ -63,7 +64,8 @@ def import_tum_run(
     run = RunFolder.create(out_dir, method=method, sequence_name=sequence_name,
                            sequence_path=sequence_path, groundtruth=groundtruth,
                            config={"imported_from": str(Path(estimate).resolve())},
-                           overwrite=overwrite)
+                           overwrite=overwrite,
+                           inputs=[p for p in (estimate, renders_dir) if p is not None])
     with run.failure_guard():
         run.write_trajectory(trajectory.timestamps, trajectory.poses)
         for index, src in renders.items():

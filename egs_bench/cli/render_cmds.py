@@ -10,6 +10,8 @@ import typer
 from egs_bench.cli.app import app
 from egs_bench.errors import ConfigError
 
+BACKENDS = ("auto", "numba", "gsplat")
+
 
 def _parse_pose(text: str) -> np.ndarray:
     from egs_bench.geometry import pose_from_tq
@@ -17,7 +19,13 @@ def _parse_pose(text: str) -> np.ndarray:
     vals = text.replace(",", " ").split()
     if len(vals) != 7:
         raise ConfigError(f"--pose needs 7 numbers 'tx ty tz qx qy qz qw', got {text!r}")
-    v = np.array([float(x) for x in vals])
+    try:
+        v = np.array([float(x) for x in vals])
+    except ValueError:
+        raise ConfigError(f"--pose needs 7 numbers 'tx ty tz qx qy qz qw', got {text!r}") \
+            from None
+    if not np.isfinite(v).all() or np.linalg.norm(v[3:]) < 1e-9:
+        raise ConfigError(f"--pose needs finite numbers and a non-zero quaternion, got {text!r}")
     return pose_from_tq(v[:3], v[3:])
 
 
@@ -29,21 +37,28 @@ def render_map(
         None, "--pose",
         help="Camera-to-world pose 'tx ty tz qx qy qz qw' (TUM order). Default: frame the map.",
     ),
-    width: int = typer.Option(640, help="Image width in pixels."),
-    height: int = typer.Option(480, help="Image height in pixels."),
-    fov: float = typer.Option(60.0, help="Horizontal field of view in degrees (square pixels)."),
+    width: int = typer.Option(640, min=1, help="Image width in pixels."),
+    height: int = typer.Option(480, min=1, help="Image height in pixels."),
+    fov: float = typer.Option(60.0, min=1.0, max=170.0,
+                              help="Horizontal field of view in degrees (square pixels)."),
     backend: str = typer.Option("auto", help="Rasteriser backend: auto, numba, gsplat."),
+    overwrite: bool = typer.Option(False, "--overwrite",
+                                   help="Replace an existing PNG at --out."),
 ) -> None:
     """Render a saved Gaussian map from one camera into a PNG."""
     from egs_bench.geometry import Intrinsics
+    from egs_bench.outputs import prepare_output
     from egs_bench.render.demo import render_map_png
     from egs_bench.render.gaussian_map import GaussianMap
 
+    if backend not in BACKENDS:
+        raise ConfigError(f"--backend must be one of {', '.join(BACKENDS)}, not {backend!r}")
+    T_wc = _parse_pose(pose) if pose else None  # noqa: N806
+    prepare_output(out, "png", overwrite=overwrite, inputs=[ply])
     gmap = GaussianMap.load_ply(ply)
     f = 0.5 * width / np.tan(np.radians(fov) / 2)
     intr = Intrinsics(f, f, width / 2, height / 2, width, height)
-    render_map_png(gmap, out, _parse_pose(pose) if pose else None,
-                   intr if pose else None, width, height, backend)
+    render_map_png(gmap, out, T_wc, intr if pose else None, width, height, backend)
     typer.echo(f"rendered {len(gmap)} Gaussians -> {out}")
 
 
@@ -52,10 +67,16 @@ def render_demo_cmd(
     out: Path = typer.Option(Path("render_demo.png"), "--out", "-o",
                              help="Output PNG: input view | render | depth | novel view."),
     ply: Path = typer.Option(None, "--ply", help="Also save the demo Gaussian map here."),
+    overwrite: bool = typer.Option(False, "--overwrite",
+                                   help="Replace an existing PNG at --out (and PLY at --ply)."),
 ) -> None:
     """Build a Gaussian map from a synthetic RGB-D view and render it (a visual self-check)."""
+    from egs_bench.outputs import prepare_output
     from egs_bench.render.demo import render_demo
 
+    prepare_output(out, "png", overwrite=overwrite)
+    if ply:
+        prepare_output(ply, "ply", overwrite=overwrite, option="--ply")
     gmap = render_demo(out)
     if ply:
         gmap.save_ply(ply)

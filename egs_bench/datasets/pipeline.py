@@ -25,7 +25,7 @@ is off by default because on fine textures it multiplies the number of renders s
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any, Protocol
@@ -38,8 +38,9 @@ from egs_bench.datasets.color import CameraResponse
 from egs_bench.datasets.esim import EventSimConfig, EventSimulator, log_luma
 from egs_bench.datasets.sequence import SequenceWriter
 from egs_bench.errors import ConfigError
-from egs_bench.fileio import atomic_path
+from egs_bench.fileio import atomic_dir
 from egs_bench.geometry import Intrinsics, invert_pose
+from egs_bench.outputs import prepare_output
 
 DEFAULT_DEPTH_SCALE = 5000.0  # uint16 PNG units per metre (TUM convention): 0.2 mm, <= 13.1 m
 
@@ -193,6 +194,7 @@ def generate_sequence(
     depth_scale: float = DEFAULT_DEPTH_SCALE,
     progress: bool = True,
     overwrite: bool = False,
+    inputs: Sequence[str | Path | None] = (),
 ) -> Path:
     """Render, simulate and write a canonical sequence folder at ``out`` (atomically).
 
@@ -206,10 +208,15 @@ def generate_sequence(
         sampling: temporal sampling rule.
         depth_scale: depth PNG units per metre.
         progress: show a progress bar.
-        overwrite: replace an existing ``out``.
+        overwrite: replace an existing ``out`` (only a sequence folder that egs-bench wrote
+            and that holds nothing else, see :func:`egs_bench.outputs.prepare_output`).
+        inputs: files or folders the generator reads; ``out`` may not be or contain one.
 
     Returns:
         The sequence folder.
+
+    Raises:
+        OutputError: ``out`` exists and may not be replaced.
     """
     out = Path(out)
     sim = sim or EventSimConfig()
@@ -221,15 +228,14 @@ def generate_sequence(
         raise ConfigError("need the same non-zero number of exposure starts and ends")
     if (t_end <= t_start).any() or (t_start[1:] < t_end[:-1]).any():
         raise ConfigError("exposure windows must be non-empty and must not overlap")
-    if out.exists() and not overwrite:
-        raise ConfigError(f"{out} already exists (pass overwrite to replace it)")
+    prepare_output(out, "sequence", overwrite=overwrite, inputs=inputs)
     cam = source.intrinsics
     boundaries = np.unique(np.concatenate([t_start, t_end]))
     meta = _base_meta(cam, sim, response, sampling, t_start, t_end, depth_scale)
     meta.update(meta_extra or {})
     meta["name"] = meta.get("name") or out.name
 
-    with atomic_path(out) as tmp:
+    with atomic_dir(out, replace=overwrite) as tmp:
         writer = SequenceWriter(tmp, meta, t_offset_us=int(boundaries[0]))
         sampler = _Sampler(source, sampling, sim.eps)
         simulator = EventSimulator(sim, cam.height, cam.width)

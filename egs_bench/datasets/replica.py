@@ -38,7 +38,7 @@ import numpy as np
 from PIL import Image
 
 from egs_bench.errors import InputError
-from egs_bench.fileio import atomic_path, write_text_atomic
+from egs_bench.fileio import atomic_dir, write_text_atomic
 from egs_bench.geometry import Intrinsics
 
 REPLICA_DEPTH_SCALE = 6553.5
@@ -223,6 +223,7 @@ def export_replica_layout(
     depth_scale: float = REPLICA_DEPTH_SCALE,
     image_format: str = "jpg",
     jpeg_quality: int = 95,
+    overwrite: bool = False,
 ) -> Path:
     """Write an RGB-D + pose sequence in the NICE-SLAM Replica layout (atomically).
 
@@ -230,13 +231,15 @@ def export_replica_layout(
         rgb_list: N uint8 sRGB images [H, W, 3] (RGB order).
         depth_list: N depth maps [H, W] in metres (0 = invalid; NaN not allowed).
         poses: N camera-to-world poses [4, 4].
-        out_dir: the scene folder to create (replaced if it exists).
+        out_dir: the scene folder to create; an existing one is replaced only with
+            ``overwrite``.
         intrinsics: egs-bench-convention intrinsics; if given, a ``cam_params.json`` is written
             (converted to Replica's convention, ``cx - 0.5``). If None, the images must match
             the Replica defaults that a reader will assume.
         depth_scale: PNG value per metre (Replica: 6553.5, so depths up to 10 m).
         image_format: ``"jpg"`` (as NICE-SLAM) or ``"png"`` (lossless, for exact tests).
         jpeg_quality: JPEG quality 1..100.
+        overwrite: replace an existing ``out_dir``.
 
     Returns:
         ``out_dir``.
@@ -248,7 +251,7 @@ def export_replica_layout(
         raise ValueError(f"{n} colour, {len(depth_list)} depth and {len(poses)} pose entries")
     if image_format not in ("jpg", "png"):
         raise ValueError("image_format must be 'jpg' or 'png'")
-    with atomic_path(out_dir) as tmp:
+    with atomic_dir(out_dir, replace=overwrite) as tmp:
         results = tmp / "results"
         results.mkdir(parents=True)
         for i, (rgb, depth) in enumerate(zip(rgb_list, depth_list, strict=True)):

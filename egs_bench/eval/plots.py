@@ -123,22 +123,23 @@ def plot_run(run_dir: str | Path, protocol: str = "egs",
     """
     from egs_bench.eval.evaluate import compute_run_ate, open_sequence
     from egs_bench.eval.protocols import get_protocol
-    from egs_bench.runs.folder import RunFolder
+    from egs_bench.runs.folder import PLOT_FILES, RunFolder
 
     proto = get_protocol(protocol)
     run = RunFolder.open(run_dir)
     status = run.read_status()
-    if status.state != "done":
+    if status.state != "done" and not (status.state == "interrupted"
+                                       and run.trajectory_path.is_file()):
         raise InputError(run.path, f"run is {status.state}"
                                    + (f" ({status.reason})" if status.reason else "")
                                    + "; nothing to plot")
     seq = open_sequence(run.sequence_path) if run.sequence_path is not None else None
     ate = compute_run_ate(run, proto, seq)
     label = f"{run.method} on {run.sequence_name}"
+    top, over_time, grid = (run.plots_dir / name for name in PLOT_FILES)
     out = [
-        plot_trajectory_top_view(ate, run.plots_dir / "trajectory_top.png",
-                                 f"{label}: ATE RMSE {100 * ate.rmse:.2f} cm"),
-        plot_ate_over_time(ate, run.plots_dir / "ate_over_time.png", f"{label}: ATE over time"),
+        plot_trajectory_top_view(ate, top, f"{label}: ATE RMSE {100 * ate.rmse:.2f} cm"),
+        plot_ate_over_time(ate, over_time, f"{label}: ATE over time"),
     ]
     rendered = run.render_indices()
     if seq is not None and rendered:
@@ -151,5 +152,5 @@ def plot_run(run_dir: str | Path, protocol: str = "egs",
                 raise InputError(seq.path, f"frame {f} outside the sequence (0..{len(seq) - 1})")
             rows.append((f, [seq.rgb(f), run.read_render(f), seq.sharp(f)]))
         out.append(plot_qualitative_grid(rows, ["observed (blurred)", run.method, "sharp GT"],
-                                         run.plots_dir / "qualitative.png", label))
+                                         grid, label))
     return out

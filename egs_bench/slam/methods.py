@@ -32,16 +32,16 @@ class ConfiguredSlamMethod:
 
     def run(self, sequence: Sequence, out: Path, *, preset: str = "paper", device: str = "cpu",
             seed: int = 0, max_frames: int | None = None, progress: bool = True,
-            options: dict[str, Any] | None = None) -> RunFolder:
+            overwrite: bool = False, options: dict[str, Any] | None = None) -> RunFolder:
         """Run on ``sequence``; ``options`` override single configuration fields on top of the
         preset and the method's own settings (sensitivity studies; stored in the run folder's
-        resolved configuration)."""
+        resolved configuration); ``overwrite`` replaces an existing run folder at ``out``."""
         from egs_bench.slam.runner import run_slam
 
         config = self.config(preset).replace(**(options or {})).validate()
         return run_slam(sequence, out, method_name=self.name, config=config,
                         preset=preset, device=device, seed=seed, max_frames=max_frames,
-                        progress=progress)
+                        progress=progress, overwrite=overwrite)
 
 
 _MONOGS = {

