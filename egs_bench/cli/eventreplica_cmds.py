@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Literal
 
 import typer
 from rich.console import Console
@@ -54,8 +55,10 @@ def make_eventreplica_cmd(
     width: int = typer.Option(448, "--width", help="Output width after the centre crop (px)."),
     height: int = typer.Option(256, "--height", help="Output height after the centre crop (px)."),
     resize: str = typer.Option(
-        "459x260", "--resize",
-        help="Resize to WxH before the centre crop, or 'none' to crop only.",
+        "auto", "--resize",
+        help="Resize to WxH before the centre crop, 'none' to crop only, or 'auto': the "
+             "paper's 459x260 for Replica's 1200x680 frames, otherwise the smallest size with "
+             "the input's aspect ratio that covers the crop.",
     ),
     first: int = typer.Option(0, "--first", min=0, help="First original frame to use."),
     max_frames: int | None = typer.Option(
@@ -105,13 +108,17 @@ def make_eventreplica_cmd(
         Console().print(f"wrote {path}")
 
 
-def _parse_size(text: str) -> tuple[int, int] | None:
+def _parse_size(text: str) -> tuple[int, int] | Literal["auto"] | None:
     from egs_bench.errors import ConfigError
 
-    if text.strip().lower() == "none":
-        return None
+    word = text.strip().lower()
+    if word in ("none", "auto"):
+        return None if word == "none" else "auto"
     try:
-        w, h = (int(v) for v in text.lower().split("x"))
+        w, h = (int(v) for v in word.split("x"))
     except ValueError:
-        raise ConfigError(f"--resize must look like 459x260 or 'none', not {text!r}") from None
+        raise ConfigError(f"--resize must look like 459x260, 'auto' or 'none', not {text!r}") \
+            from None
+    if w <= 0 or h <= 0:
+        raise ConfigError(f"--resize must be a positive size, not {text!r}")
     return w, h

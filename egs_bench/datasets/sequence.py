@@ -36,14 +36,33 @@ REQUIRED_META = ("width", "height", "fx", "fy", "cx", "cy", "depth_scale")
 EVENT_TIME_MARGIN_US = 1_000_000
 
 
+#: a camera whose field of view lies outside this range (degrees) has absurd intrinsics
+FOV_RANGE_DEG = (1.0, 170.0)
+
+
+def _is_number(value: Any) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool) \
+        and bool(np.isfinite(value))
+
+
 def read_meta(path: Path) -> dict[str, Any]:
-    """Read and check ``meta.yaml``; raises :class:`InputError` naming the file."""
+    """Read and check ``meta.yaml``; raises :class:`InputError` naming the file.
+
+    Checked: UTF-8 YAML mapping; the required keys are positive numbers; integer image size;
+    intrinsics that describe a camera (field of view between 1 and 170 degrees, principal point
+    inside the image); and, where present, ``eps`` and both ``event_thresholds`` positive,
+    ``has_events`` a boolean, ``sigma`` and ``refractory_us`` not negative.
+    """
     if not path.is_file():
         raise InputError(path, "meta.yaml not found (is this a sequence folder?)")
     try:
-        meta = yaml.safe_load(path.read_text())
+        text = path.read_bytes().decode("utf-8")
+    except UnicodeDecodeError:
+        raise InputError(path, "not a UTF-8 text file (binary or corrupt)") from None
+    try:
+        meta = yaml.safe_load(text)
     except yaml.YAMLError as exc:
-        raise InputError(path, f"not valid YAML ({exc})") from None
+        raise InputError(path, f"not valid YAML ({exc})".replace("\n", " ")) from None
     if not isinstance(meta, dict):
         raise InputError(path, "expected a mapping of keys to values")
     missing = [k for k in REQUIRED_META if k not in meta]
@@ -51,23 +70,63 @@ def read_meta(path: Path) -> dict[str, Any]:
         raise InputError(path, f"missing keys: {', '.join(missing)}")
     for key in REQUIRED_META:
         value = meta[key]
-        if not isinstance(value, int | float) or not np.isfinite(value) or value <= 0:
+        if not _is_number(value) or value <= 0:
             raise InputError(path, f"{key} must be a positive number, got {value!r}")
     for key in ("width", "height"):
         if int(meta[key]) != meta[key]:
             raise InputError(path, f"{key} must be an integer")
+    _check_camera(path, meta)
+    _check_event_settings(path, meta)
     return meta
+
+
+def _check_camera(path: Path, meta: dict[str, Any]) -> None:
+    lo, hi = FOV_RANGE_DEG
+    for f, size, axis in (("fx", "width", "horizontal"), ("fy", "height", "vertical")):
+        fov = float(np.degrees(2 * np.arctan(meta[size] / (2 * meta[f]))))
+        if not lo <= fov <= hi:
+            raise InputError(path, f"{f} = {meta[f]!r} gives a {axis} field of view of "
+                                   f"{fov:.3g} degrees for {size} {meta[size]} (plausible: "
+                                   f"{lo:g} to {hi:g}); is {f} in pixels?")
+    for c, size in (("cx", "width"), ("cy", "height")):
+        if not 0 <= meta[c] <= meta[size]:
+            raise InputError(path, f"{c} = {meta[c]!r} lies outside the image (0 to "
+                                   f"{size} {meta[size]})")
+
+
+def _check_event_settings(path: Path, meta: dict[str, Any]) -> None:
+    if "has_events" in meta and not isinstance(meta["has_events"], bool):
+        raise InputError(path, f"has_events must be true or false, got {meta['has_events']!r}")
+    if "eps" in meta and (not _is_number(meta["eps"]) or meta["eps"] <= 0):
+        raise InputError(path, f"eps (the offset of log(luma + eps)) must be a positive number, "
+                               f"got {meta['eps']!r}")
+    thresholds = meta.get("event_thresholds")
+    if thresholds is not None:
+        if not isinstance(thresholds, dict):
+            raise InputError(path, "event_thresholds must be a mapping {pos: C+, neg: C-}")
+        for key in ("pos", "neg"):
+            value = thresholds.get(key)
+            if value is not None and (not _is_number(value) or value <= 0):
+                raise InputError(path, f"event_thresholds.{key} must be a positive number "
+                                       f"(log-intensity contrast), got {value!r}")
+    for key in ("sigma", "refractory_us"):
+        value = meta.get(key)
+        if value is not None and (not _is_number(value) or value < 0):
+            raise InputError(path, f"{key} must be a number >= 0, got {value!r}")
 
 
 def _read_frames_csv(path: Path) -> list[dict[str, str]]:
     if not path.is_file():
         raise InputError(path, "frames.csv not found")
-    with path.open(newline="") as handle:
-        reader = csv.DictReader(handle)
-        missing = [c for c in FRAME_COLUMNS[:5] if c not in (reader.fieldnames or [])]
-        if missing:
-            raise InputError(path, f"missing columns: {', '.join(missing)}")
-        rows = list(reader)
+    try:
+        with path.open(newline="", encoding="utf-8") as handle:
+            reader = csv.DictReader(handle)
+            missing = [c for c in FRAME_COLUMNS[:5] if c not in (reader.fieldnames or [])]
+            if missing:
+                raise InputError(path, f"missing columns: {', '.join(missing)}")
+            rows = list(reader)
+    except (UnicodeDecodeError, csv.Error) as exc:
+        raise InputError(path, f"not a readable CSV table ({exc})") from None
     if not rows:
         raise InputError(path, "no frames listed")
     return rows
@@ -108,6 +167,10 @@ class Sequence:
         meta = read_meta(path / "meta.yaml")
         frames = _read_frames_csv(path / "frames.csv")
         _check_frame_table(path / "frames.csv", frames)
+        listed = meta.get("num_frames")
+        if listed is not None and listed != len(frames):
+            raise InputError(path / "meta.yaml", f"num_frames is {listed!r} but frames.csv "
+                                                 f"lists {len(frames)} frames")
         gt_path = path / "groundtruth.txt"
         groundtruth = read_tum(gt_path)
         if len(groundtruth) != len(frames):
@@ -155,11 +218,17 @@ class Sequence:
 
     @property
     def pos_threshold(self) -> float:
-        return float(self.meta.get("event_thresholds", {}).get("pos", 0.25))
+        """Positive contrast threshold C+ (log units); 0.25 when ``meta.yaml`` has none."""
+        return self._threshold("pos")
 
     @property
     def neg_threshold(self) -> float:
-        return float(self.meta.get("event_thresholds", {}).get("neg", 0.25))
+        """Negative contrast threshold C- (log units); 0.25 when ``meta.yaml`` has none."""
+        return self._threshold("neg")
+
+    def _threshold(self, key: str) -> float:
+        value = (self.meta.get("event_thresholds") or {}).get(key)
+        return float(value) if value is not None else 0.25
 
     @property
     def exposure_us(self) -> int:

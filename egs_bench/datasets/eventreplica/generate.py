@@ -15,7 +15,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import asdict
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
@@ -57,7 +57,7 @@ def make_eventreplica(
     interpolator: str = "depth",
     width: int = 448,
     height: int = 256,
-    resize: tuple[int, int] | None = (459, 260),
+    resize: tuple[int, int] | Literal["auto"] | None = "auto",
     first: int = 0,
     max_frames: int | None = None,
     cam_params: str | Path | None = None,
@@ -80,7 +80,9 @@ def make_eventreplica(
             interval; exposure boundaries are always samples, so a few more).
         interpolator: ``"depth"`` (pose-aware view synthesis) or ``"flow"`` (DIS optical flow).
         width, height: output size after the centre crop.
-        resize: size ``(w, h)`` to resize to before cropping; None = crop only.
+        resize: size ``(w, h)`` to resize to before cropping; ``"auto"`` = the paper's 459x260
+            for Replica's 1200x680 frames, the input's aspect ratio otherwise (see
+            :func:`~egs_bench.datasets.eventreplica.resize.auto_resize`); None = crop only.
         first: first original frame used.
         max_frames: cap on the number of strided frames read (output frames are one fewer).
         cam_params: explicit ``cam_params.json`` (else auto-detected, else Replica defaults).
@@ -129,7 +131,8 @@ def make_eventreplica(
             "first": first,
             "fps_strided": fps,
             "original_frames": [int(source.frame_indices[i]) for i in ids],
-            "resize": None if resize is None else list(resize),
+            "resize": list(source.geometry.resized_size(scene.intrinsics)),
+            "resize_rule": resize if isinstance(resize, str) or resize is None else "explicit",
             "crop": [width, height],
             "interpolator": source.interpolator.name,
             "interpolator_settings": asdict(source.interpolator),  # type: ignore[call-overload]
