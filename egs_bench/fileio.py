@@ -13,6 +13,8 @@
   dies, however it dies, which is what makes stale run folders and staging folders detectable.
 
 What may be replaced at all (``--overwrite`` rules) is decided by :mod:`egs_bench.outputs`.
+:func:`read_text` is the one way text inputs are read, so a binary or unreadable file is always
+reported as an :class:`~egs_bench.errors.InputError` naming it.
 """
 
 from __future__ import annotations
@@ -31,11 +33,28 @@ from typing import Any
 
 import numpy as np
 
-from egs_bench.errors import OutputError, UnwritableOutputError
+from egs_bench.errors import InputError, OutputError, UnwritableOutputError
 
 #: a staging folder without an owner lock file older than this is considered abandoned
 _STAGING_GRACE_S = 60.0
 _OWNER_FILE = ".owner"
+
+
+def read_text(path: str | Path, what: str = "file") -> str:
+    """The UTF-8 text of ``path``.
+
+    Raises:
+        InputError: missing (``"<what> not found"``), unreadable, or not UTF-8 text.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(path, f"{what} not found")
+    try:
+        return path.read_bytes().decode("utf-8")
+    except UnicodeDecodeError:
+        raise InputError(path, "not a UTF-8 text file (binary or corrupt)") from None
+    except OSError as exc:
+        raise InputError(path, f"cannot read ({exc.strerror or exc})") from None
 
 
 def ensure_parent(path: Path) -> None:

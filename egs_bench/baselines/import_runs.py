@@ -11,8 +11,8 @@ import re
 from pathlib import Path
 
 from egs_bench.errors import InputError
-from egs_bench.eval.image_io import read_ldr_image
 from egs_bench.geometry import read_tum
+from egs_bench.images import read_ldr_image
 from egs_bench.runs.folder import RunFolder
 
 _RENDER = re.compile(r"^(\d+)\.png$")

@@ -82,7 +82,7 @@ def make_eventreplica_cmd(
     progress: bool = typer.Option(True, "--progress/--no-progress", help="Show progress bars."),
 ) -> None:
     """Make EventReplica-style sequences: resize + crop, temporal upsampling, events, blur."""
-    from egs_bench.datasets.color import CameraResponse
+    from egs_bench.color import LdrResponse
     from egs_bench.datasets.esim import EventSimConfig
     from egs_bench.datasets.eventreplica import make_eventreplica, make_eventreplica_scenes
     from egs_bench.errors import ConfigError
@@ -98,7 +98,7 @@ def make_eventreplica_cmd(
         interpolator=interpolator, width=width, height=height, resize=_parse_size(resize),
         first=first, max_frames=max_frames, cam_params=cam_params,
         sim=EventSimConfig(pos_threshold=threshold, neg_threshold=threshold, eps=eps, seed=seed),
-        response=CameraResponse(gain=gain), progress=progress, overwrite=overwrite,
+        response=LdrResponse(gain=gain), progress=progress, overwrite=overwrite,
     )
     if input is not None:
         outputs = [make_eventreplica(input, out, **kwargs)]

@@ -35,7 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from egs_bench.datasets.color import luma
+from egs_bench.color import luma
 from egs_bench.datasets.esim_kernels import (
     NEVER_FIRED_US,
     counting_sort_by_time,

@@ -8,6 +8,7 @@ from typing import Any
 import cv2
 import numpy as np
 
+from egs_bench.color import to_uint8
 from egs_bench.datasets.pipeline import LatentFrame, max_flow_px
 from egs_bench.datasets.sequence import Sequence
 from egs_bench.fileio import atomic_path
@@ -95,7 +96,7 @@ def event_map_image(counts: np.ndarray) -> np.ndarray:
     img[pos, 2] -= level[pos]
     img[neg, 0] -= level[neg]
     img[neg, 1] -= level[neg]
-    return (img * 255).round().astype(np.uint8)
+    return to_uint8(img)
 
 
 def save_frame_panel(seq: Sequence, i: int, out: str | Path) -> Path:
@@ -135,7 +136,6 @@ def save_frame_panel(seq: Sequence, i: int, out: str | Path) -> Path:
     fig.suptitle(f"{seq.name}")
     fig.tight_layout()
     with atomic_path(out) as tmp:
-        fig.savefig(tmp.with_suffix(".png"), dpi=100)
-        tmp.with_suffix(".png").rename(tmp)
+        fig.savefig(tmp, format="png", dpi=100)
     plt.close(fig)
     return out

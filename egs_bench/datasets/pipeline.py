@@ -34,7 +34,7 @@ import numpy as np
 from tqdm import tqdm
 
 import egs_bench
-from egs_bench.datasets.color import CameraResponse
+from egs_bench.color import LdrResponse
 from egs_bench.datasets.esim import EventSimConfig, EventSimulator, log_luma
 from egs_bench.datasets.sequence import SequenceWriter
 from egs_bench.errors import ConfigError
@@ -189,7 +189,7 @@ def generate_sequence(
     *,
     meta_extra: dict[str, Any] | None = None,
     sim: EventSimConfig | None = None,
-    response: CameraResponse | None = None,
+    response: LdrResponse | None = None,
     sampling: SamplingConfig | None = None,
     depth_scale: float = DEFAULT_DEPTH_SCALE,
     progress: bool = True,
@@ -220,7 +220,7 @@ def generate_sequence(
     """
     out = Path(out)
     sim = sim or EventSimConfig()
-    response = response or CameraResponse()
+    response = response or LdrResponse()
     sampling = sampling or SamplingConfig()
     t_start = np.asarray(t_start_us, dtype=np.int64)
     t_end = np.asarray(t_end_us, dtype=np.int64)
@@ -271,7 +271,7 @@ def generate_sequence(
     return out
 
 
-def _base_meta(cam: Intrinsics, sim: EventSimConfig, response: CameraResponse,
+def _base_meta(cam: Intrinsics, sim: EventSimConfig, response: LdrResponse,
                sampling: SamplingConfig, t_start: np.ndarray, t_end: np.ndarray,
                depth_scale: float) -> dict[str, Any]:
     period = float(np.median(np.diff(t_end))) if len(t_end) > 1 else float(t_end[0] - t_start[0])

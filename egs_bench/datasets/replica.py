@@ -33,13 +33,18 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-import cv2
 import numpy as np
-from PIL import Image
 
 from egs_bench.errors import InputError
-from egs_bench.fileio import atomic_dir, write_text_atomic
+from egs_bench.fileio import atomic_dir, read_text, write_text_atomic
 from egs_bench.geometry import Intrinsics
+from egs_bench.images import (
+    image_header,
+    read_depth_png,
+    read_ldr_image,
+    write_depth_png,
+    write_ldr_image,
+)
 
 REPLICA_DEPTH_SCALE = 6553.5
 # NICE-SLAM configs/Replica/replica.yaml, in Replica's own (pixel centre at integer) convention.
@@ -87,23 +92,14 @@ class ReplicaScene:
     def rgb(self, index: int) -> np.ndarray:
         """Colour frame ``index`` as uint8 sRGB [H, W, 3] (RGB order)."""
         path = self.rgb_paths[index]
-        img = cv2.imread(str(path), cv2.IMREAD_COLOR)
-        if img is None:
-            raise InputError(path, "cannot decode the colour image")
+        img = read_ldr_image(path)
         self._check_size(path, img)
-        return np.ascontiguousarray(img[:, :, ::-1])
+        return img
 
     def depth(self, index: int) -> np.ndarray:
         """Depth frame ``index`` in metres, float32 [H, W] (0 = invalid)."""
         path = self.depth_paths[index]
-        raw = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
-        if raw is None:
-            raise InputError(path, "cannot decode the depth image")
-        if raw.ndim != 2 or raw.dtype != np.uint16:
-            raise InputError(
-                path, f"depth must be a single-channel 16-bit PNG, got dtype {raw.dtype} "
-                f"with shape {raw.shape}"
-            )
+        raw = read_depth_png(path)
         self._check_size(path, raw)
         return (raw.astype(np.float32) / np.float32(self.depth_scale)).astype(np.float32)
 
@@ -182,7 +178,7 @@ def read_replica_trajectory(path: str | Path) -> np.ndarray:
     if not path.is_file():
         raise InputError(path, "missing trajectory file (16 numbers per line, camera-to-world)")
     poses = []
-    for line_no, line in enumerate(path.read_text().splitlines(), start=1):
+    for line_no, line in enumerate(read_text(path).splitlines(), start=1):
         text = line.strip()
         if not text or text.startswith("#"):
             continue
@@ -264,11 +260,8 @@ def export_replica_layout(
             raw = np.round(depth * depth_scale)
             if raw.max() > 65535:
                 raise ValueError(f"frame {i}: depth {depth.max():.3f} m overflows 16 bits")
-            params = [cv2.IMWRITE_JPEG_QUALITY, int(jpeg_quality)] if image_format == "jpg" else []
-            if not cv2.imwrite(str(results / f"frame{i:06d}.{image_format}"), rgb[:, :, ::-1],
-                               params):
-                raise OSError(f"could not write frame {i}")
-            cv2.imwrite(str(results / f"depth{i:06d}.png"), raw.astype(np.uint16))
+            write_ldr_image(results / f"frame{i:06d}.{image_format}", rgb, jpeg_quality)
+            write_depth_png(results / f"depth{i:06d}.png", raw.astype(np.uint16))
         lines = [" ".join(f"{v:.17g}" for v in pose.reshape(-1)) for pose in poses]
         (tmp / "traj.txt").write_text("\n".join(lines) + "\n")
         if intrinsics is not None:
@@ -353,11 +346,8 @@ def _check_headers(scene: ReplicaScene) -> None:
     want = (scene.intrinsics.width, scene.intrinsics.height)
     for kind, paths in (("colour", scene.rgb_paths), ("depth", scene.depth_paths)):
         for path in paths:
-            try:
-                with Image.open(path) as im:
-                    size, mode = im.size, im.mode
-            except (OSError, Image.UnidentifiedImageError) as exc:
-                raise InputError(path, f"unreadable {kind} image ({exc})") from None
+            width, height, mode = image_header(path)
+            size = (width, height)
             if size != want:
                 raise InputError(
                     path, f"{kind} image is {size[0]}x{size[1]}, expected {want[0]}x{want[1]}"

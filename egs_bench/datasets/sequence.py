@@ -1,4 +1,4 @@
-"""The canonical sequence folder (DESIGN §3): reader with validation, and writer.
+"""The canonical sequence folder (docs/design.md §3): reader with validation, and writer.
 
 ```
 <seq>/meta.yaml               calibration, generator, event thresholds, exposure, camera response
@@ -19,15 +19,20 @@ import functools
 from pathlib import Path
 from typing import Any
 
-import cv2
 import numpy as np
 import yaml
-from PIL import Image
 
 from egs_bench.datasets.events import EventStream, EventWriter
 from egs_bench.errors import InputError
-from egs_bench.fileio import to_plain
+from egs_bench.fileio import read_text, to_plain
 from egs_bench.geometry import Intrinsics, Trajectory, read_tum, write_tum
+from egs_bench.images import (
+    image_size,
+    read_depth_png,
+    read_ldr_image,
+    write_depth_png,
+    write_ldr_image,
+)
 
 FORMAT_VERSION = 1
 FRAME_COLUMNS = ("index", "t_start_us", "t_end_us", "rgb", "depth", "sharp")
@@ -55,10 +60,7 @@ def read_meta(path: Path) -> dict[str, Any]:
     """
     if not path.is_file():
         raise InputError(path, "meta.yaml not found (is this a sequence folder?)")
-    try:
-        text = path.read_bytes().decode("utf-8")
-    except UnicodeDecodeError:
-        raise InputError(path, "not a UTF-8 text file (binary or corrupt)") from None
+    text = read_text(path)
     try:
         meta = yaml.safe_load(text)
     except yaml.YAMLError as exc:
@@ -341,26 +343,24 @@ def _check_images(root: Path, frames: list[dict[str, str]], width: int, height: 
             file = root / name
             if not file.is_file():
                 raise InputError(file, f"{column} image of frame {r['index']} not found")
-            if check_size:
-                try:
-                    with Image.open(file) as img:
-                        size = img.size
-                except Exception as exc:  # noqa: BLE001 (PIL raises many kinds on bad files)
-                    raise InputError(file, f"unreadable image ({exc})") from None
+            if check_size and file.suffix != ".npy":
+                size = image_size(file)
                 if size != (width, height):
                     raise InputError(file, f"image is {size[0]}x{size[1]}, expected "
                                            f"{width}x{height} (meta.yaml)")
 
 
+def _check_shape(path: Path, shape: tuple[int, ...], width: int, height: int) -> None:
+    if shape[:2] != (height, width):
+        raise InputError(path, f"image is {shape[1]}x{shape[0]}, expected {width}x{height}")
+
+
 def _read_rgb(path: Path | None, width: int, height: int) -> np.ndarray:
     if path is None:
         raise ValueError("no image")
-    img = cv2.imread(str(path), cv2.IMREAD_COLOR)
-    if img is None:
-        raise InputError(path, "unreadable image")
-    if img.shape[:2] != (height, width):
-        raise InputError(path, f"image is {img.shape[1]}x{img.shape[0]}, expected {width}x{height}")
-    return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
+    img = read_ldr_image(path)
+    _check_shape(path, img.shape, width, height)
+    return img
 
 
 def _read_depth(path: Path | None, width: int, height: int, scale: float) -> np.ndarray:
@@ -368,20 +368,14 @@ def _read_depth(path: Path | None, width: int, height: int, scale: float) -> np.
         raise ValueError("no depth image")
     if path.suffix == ".npy":
         try:
-            depth = np.load(path).astype(np.float32)
-        except (OSError, ValueError) as exc:
+            depth = np.load(path, allow_pickle=False).astype(np.float32)
+        except (OSError, ValueError, EOFError) as exc:
             raise InputError(path, f"unreadable depth array ({exc})") from None
     else:
-        raw = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
-        if raw is None:
-            raise InputError(path, "unreadable depth image")
-        if raw.dtype != np.uint16 or raw.ndim != 2:
-            raise InputError(path, f"depth PNG must be single-channel uint16, got {raw.dtype} "
-                                   f"with shape {raw.shape}")
-        depth = raw.astype(np.float32) / np.float32(scale)
-    if depth.shape != (height, width):
-        raise InputError(path, f"depth is {depth.shape[1]}x{depth.shape[0]}, expected "
-                               f"{width}x{height}")
+        depth = read_depth_png(path).astype(np.float32) / np.float32(scale)
+    if depth.ndim != 2:
+        raise InputError(path, f"depth must be a 2-D array, got shape {depth.shape}")
+    _check_shape(path, depth.shape, width, height)
     if not np.isfinite(depth).all():
         raise InputError(path, "depth contains NaN or infinite values")
     if (depth < 0).any():
@@ -422,12 +416,12 @@ class SequenceWriter:
         ``pose`` the ``T_wc`` at exposure end. Returns the frame index."""
         i = len(self._rows)
         name = f"{i:06d}.png"
-        cv2.imwrite(str(self.root / "rgb" / name), cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR))
-        cv2.imwrite(str(self.root / "depth" / name), encode_depth(depth, self.meta["depth_scale"]))
+        if self.with_sharp and sharp is None:
+            raise ValueError("sharp image required (with_sharp=True)")
+        write_ldr_image(self.root / "rgb" / name, rgb)
+        write_depth_png(self.root / "depth" / name, encode_depth(depth, self.meta["depth_scale"]))
         if self.with_sharp:
-            if sharp is None:
-                raise ValueError("sharp image required (with_sharp=True)")
-            cv2.imwrite(str(self.root / "sharp" / name), cv2.cvtColor(sharp, cv2.COLOR_RGB2BGR))
+            write_ldr_image(self.root / "sharp" / name, sharp)
         self._rows.append({
             "index": i, "t_start_us": int(t_start_us), "t_end_us": int(t_end_us),
             "rgb": f"rgb/{name}", "depth": f"depth/{name}",

@@ -20,7 +20,7 @@ from egs_bench.errors import InputError
 from egs_bench.eval.ate import compute_ate
 from egs_bench.eval.image_metrics import psnr, psnr_masked, ssim
 from egs_bench.eval.protocols import DEFAULT_PROTOCOL, Protocol, get_protocol
-from egs_bench.fileio import write_text_atomic
+from egs_bench.fileio import read_text, write_text_atomic
 from egs_bench.geometry import Trajectory, read_tum
 from egs_bench.runs.folder import RunFolder
 
@@ -288,7 +288,7 @@ def read_metrics(run_dir: str | Path) -> dict[str, Any]:
     if not path.is_file():
         raise InputError(path, "not found (run `egs-bench eval` first)")
     try:
-        data = json.loads(path.read_text())
+        data = json.loads(read_text(path))
     except json.JSONDecodeError as exc:
         raise InputError(path, f"not valid JSON ({exc})") from None
     if not isinstance(data, dict) or "protocol" not in data or "ate" not in data:

@@ -58,13 +58,14 @@ from egs_bench import __version__
 from egs_bench.errors import InputError, OutputError
 from egs_bench.fileio import (
     FileLock,
-    atomic_path,
     lock_is_held,
     owner_note,
+    read_text,
     to_plain,
     write_text_atomic,
 )
 from egs_bench.geometry import Trajectory, read_tum, write_tum
+from egs_bench.images import read_ldr_image, write_ldr_image
 from egs_bench.outputs import prepare_output
 
 RUN_FILE = "run.yaml"
@@ -147,19 +148,8 @@ def _parse_utc(text: str | None) -> _dt.datetime | None:
         return None
 
 
-def _read_text(path: Path) -> str:
-    if not path.is_file():
-        raise InputError(path, "file not found")
-    try:
-        return path.read_bytes().decode("utf-8")
-    except UnicodeDecodeError:
-        raise InputError(path, "not a UTF-8 text file (binary or corrupt)") from None
-    except OSError as exc:
-        raise InputError(path, f"cannot read ({exc.strerror or exc})") from None
-
-
 def _read_json(path: Path) -> dict[str, Any]:
-    text = _read_text(path)
+    text = read_text(path)
     try:
         data = json.loads(text)
     except json.JSONDecodeError as exc:
@@ -170,7 +160,7 @@ def _read_json(path: Path) -> dict[str, Any]:
 
 
 def _read_yaml(path: Path) -> dict[str, Any]:
-    text = _read_text(path)
+    text = read_text(path)
     try:
         data = yaml.safe_load(text)
     except yaml.YAMLError as exc:
@@ -594,7 +584,7 @@ class RunFolder:
         if not path.is_file():
             return None
         out = []
-        for lineno, line in enumerate(path.read_text().splitlines(), start=1):
+        for lineno, line in enumerate(read_text(path).splitlines(), start=1):
             line = line.strip()
             if not line or line.startswith("#"):
                 continue
@@ -623,13 +613,7 @@ class RunFolder:
             frame_index: 0-based frame index in the sequence.
             image: sRGB render, uint8 [H, W, 3] (float input is rejected: quantise first).
         """
-        import imageio.v3 as iio
-
-        image = np.asarray(image)
-        if image.dtype != np.uint8 or image.ndim != 3 or image.shape[2] != 3:
-            raise ValueError(f"render must be uint8 [H, W, 3], got {image.dtype} {image.shape}")
-        with atomic_path(self.render_path(frame_index)) as tmp:
-            iio.imwrite(tmp, image, extension=".png")
+        write_ldr_image(self.render_path(frame_index), image)
 
     def render_indices(self) -> list[int]:
         """Sorted frame indices that have a render."""
@@ -644,8 +628,6 @@ class RunFolder:
 
     def read_render(self, frame_index: int) -> np.ndarray:
         """Read a render as uint8 [H, W, 3]; raises :class:`InputError` if missing/unreadable."""
-        from egs_bench.eval.image_io import read_ldr_image
-
         path = self.render_path(frame_index)
         if not path.is_file():
             raise InputError(path, f"render of frame {frame_index} not found")

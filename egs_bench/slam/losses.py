@@ -11,7 +11,7 @@ import cv2
 import numpy as np
 import torch
 
-from egs_bench.datasets.color import LUMA_BT601
+from egs_bench.color import luma
 
 
 def rgb_boundary_mask(obs_rgb: torch.Tensor, threshold: float = 0.01) -> torch.Tensor:
@@ -91,18 +91,12 @@ def min_depth_loss(pred: torch.Tensor, obs: torch.Tensor, mask: torch.Tensor) ->
     return per_pose.min()
 
 
-def luma(rgb_linear: torch.Tensor) -> torch.Tensor:
-    """BT.601 luma [...] of linear RGB [..., 3]."""
-    w = torch.tensor(LUMA_BT601, dtype=rgb_linear.dtype, device=rgb_linear.device)
-    return rgb_linear @ w
-
-
 def rendered_event_maps(hdr_rgb: torch.Tensor, eps: float) -> torch.Tensor:
     """``E^_k = log(B(T(eta_k)) + eps) - log(B(T(eta_{k-1})) + eps)`` [K, H, W].
 
     Args:
         hdr_rgb: linear renders at the K+1 sub-poses [K+1, H, W, 3].
-        eps: the log offset of the sequence (DESIGN §2).
+        eps: the log offset of the sequence (docs/design.md §2).
     """
     log_b = torch.log(luma(hdr_rgb).clamp_min(0.0) + eps)
     return log_b[1:] - log_b[:-1]

@@ -10,6 +10,7 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
+from egs_bench.color import to_uint8
 from egs_bench.datasets.sequence import Sequence
 from egs_bench.errors import ConfigError, InputError
 from egs_bench.fileio import write_text_atomic
@@ -125,6 +126,5 @@ def _write_renders(run: RunFolder, system: SlamSystem, result: SlamResult, seq: 
                            system.cfg)
         ldr = system.crf(res.rgb[0]).clamp(0, 1)
         elapsed += time.perf_counter() - t
-        img = (ldr.cpu().numpy() * 255.0 + 0.5).astype(np.uint8)
-        run.write_render(s.index, img)
+        run.write_render(s.index, to_uint8(ldr.cpu().numpy()))
     return len(result.states) / elapsed if elapsed > 0 else float("nan")

@@ -8,7 +8,7 @@ import pytest
 import replica_testscene as scene
 
 from egs_bench.cli import main
-from egs_bench.datasets.color import linear_to_srgb
+from egs_bench.color import linear_to_srgb
 from egs_bench.datasets.eventreplica import (
     ReplicaSource,
     ResizeCrop,

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from egs_bench.datasets.color import linear_to_srgb
+from egs_bench.color import linear_to_srgb
 from egs_bench.datasets.eventreplica import ReplicaSource, ResizeCrop
 from egs_bench.datasets.replica import export_replica_layout, read_replica
 from egs_bench.errors import ConfigError

@@ -19,7 +19,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from egs_bench.datasets.color import CameraResponse
+from egs_bench.color import LdrResponse
 from egs_bench.datasets.esim import EventSimConfig
 from egs_bench.datasets.eventreplica.interpolate import make_interpolator
 from egs_bench.datasets.eventreplica.resize import ResizeCrop
@@ -62,7 +62,7 @@ def make_eventreplica(
     max_frames: int | None = None,
     cam_params: str | Path | None = None,
     sim: EventSimConfig | None = None,
-    response: CameraResponse | None = None,
+    response: LdrResponse | None = None,
     sampling: SamplingConfig | None = None,
     progress: bool = True,
     overwrite: bool = False,
@@ -144,7 +144,7 @@ def make_eventreplica(
     }
     return generate_sequence(
         source, t_start, t_end, out, meta_extra=meta_extra, sim=sim,
-        response=response or CameraResponse(), sampling=sampling, progress=progress,
+        response=response or LdrResponse(), sampling=sampling, progress=progress,
         overwrite=overwrite, inputs=[input, cam_params],
     )
 

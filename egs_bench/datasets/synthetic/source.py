@@ -8,7 +8,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from egs_bench.datasets.color import CameraResponse
+from egs_bench.color import LdrResponse
 from egs_bench.datasets.esim import EventSimConfig
 from egs_bench.datasets.pipeline import LatentFrame, SamplingConfig, generate_sequence
 from egs_bench.datasets.synthetic.raycast import Renderer
@@ -215,7 +215,7 @@ def make_synthetic(
         out,
         meta_extra=meta_extra,
         sim=sim,
-        response=CameraResponse(gain=gain),
+        response=LdrResponse(gain=gain),
         sampling=sampling or SamplingConfig(),
         progress=progress,
         overwrite=overwrite,
