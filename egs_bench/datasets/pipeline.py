@@ -225,9 +225,9 @@ def generate_sequence(
     t_start = np.asarray(t_start_us, dtype=np.int64)
     t_end = np.asarray(t_end_us, dtype=np.int64)
     if len(t_start) == 0 or len(t_start) != len(t_end):
-        raise ConfigError("need the same non-zero number of exposure starts and ends")
+        raise ValueError("need the same non-zero number of exposure starts and ends")
     if (t_end <= t_start).any() or (t_start[1:] < t_end[:-1]).any():
-        raise ConfigError("exposure windows must be non-empty and must not overlap")
+        raise ValueError("exposure windows must be non-empty and must not overlap")
     prepare_output(out, "sequence", overwrite=overwrite, inputs=inputs)
     cam = source.intrinsics
     boundaries = np.unique(np.concatenate([t_start, t_end]))

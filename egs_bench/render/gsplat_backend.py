@@ -75,7 +75,7 @@ def rasterize_gsplat(
     [C,N], radii [C,N] int32, means2d [C,N,2], depths [C,N] (see :class:`RasterResult`)."""
     gsplat = _import_gsplat()
     if means.device.type != "cuda":
-        raise ConfigError("backend 'gsplat' needs CUDA tensors (use backend='numba' on the CPU)")
+        raise ValueError("backend 'gsplat' needs CUDA tensors (use backend='numba' on the CPU)")
     C, N = viewmats.shape[0], means.shape[0]
     renders, alphas, meta = gsplat.rasterization(
         means, quats, scales, opacities, colors, viewmats, Ks.to(means.dtype), width, height,

@@ -22,8 +22,8 @@ def _cli(capsys, *argv: str) -> tuple[int, str, str]:
 
 
 @needs_weights
-def test_cli_eval_leaderboard_plot_import(tmp_path, tiny_sequence, capsys) -> None:
-    run = make_run(tmp_path / "runs", tiny_sequence)
+def test_cli_eval_leaderboard_plot_import(tmp_path, eval_sequence, capsys) -> None:
+    run = make_run(tmp_path / "runs", eval_sequence)
     code, out, _ = _cli(capsys, "eval", str(run.path), "--protocol", "egs")
     assert code == 0 and "ATE RMSE (cm)" in out and "metrics.json" in out
     metrics = json.loads(run.metrics_path.read_text())
@@ -31,7 +31,7 @@ def test_cli_eval_leaderboard_plot_import(tmp_path, tiny_sequence, capsys) -> No
 
     code, out, _ = _cli(capsys, "import-run", str(run.trajectory_path),
                         str(tmp_path / "runs" / "tiny" / "ext"), "--method", "ext",
-                        "--sequence", "tiny", "--sequence-path", str(tiny_sequence))
+                        "--sequence", "tiny", "--sequence-path", str(eval_sequence))
     assert code == 0 and "imported ext on tiny" in out
     code, out, _ = _cli(capsys, "leaderboard", str(tmp_path / "runs"), "--format", "md")
     assert code == 0 and "| egs " in out and "| ext " in out

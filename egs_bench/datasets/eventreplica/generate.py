@@ -117,7 +117,8 @@ def make_eventreplica(
     )
     ids, t_start, t_end = exposure_windows(source.key_times_us, exposure_us)
     if len(ids) == 0:
-        raise ConfigError(f"{scene.path}: no frame has a full exposure inside the sequence")
+        raise InputError(scene.path, "no frame has a full exposure inside the sequence (too "
+                                     "few frames for --stride / --first / --max-frames?)")
     sim = sim or EventSimConfig()
     meta_extra: dict[str, Any] = {
         "name": Path(out).name,
