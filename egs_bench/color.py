@@ -18,7 +18,7 @@ imported only when a tensor is passed.
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
-from typing import TYPE_CHECKING, Any, TypeVar
+from typing import TYPE_CHECKING, Any, overload
 
 import numpy as np
 
@@ -32,8 +32,6 @@ LUMA_BT601 = (0.299, 0.587, 0.114)
 _SRGB_LINEAR_BREAK = 0.0031308
 _SRGB_ENCODED_BREAK = 0.04045
 
-ArrayT = TypeVar("ArrayT", np.ndarray, "torch.Tensor")
-
 
 def _is_tensor(x: object) -> bool:
     return type(x).__module__.split(".")[0] == "torch"
@@ -44,7 +42,11 @@ def _float_array(x: Any) -> np.ndarray:
     return arr if arr.dtype.kind == "f" else arr.astype(np.float32)
 
 
-def srgb_to_linear(encoded: ArrayT) -> ArrayT:
+@overload
+def srgb_to_linear(encoded: np.ndarray) -> np.ndarray: ...
+@overload
+def srgb_to_linear(encoded: torch.Tensor) -> torch.Tensor: ...
+def srgb_to_linear(encoded: Any) -> Any:
     """sRGB EOTF: encoded values in [0, 1] (clipped) -> linear intensity in [0, 1]."""
     if _is_tensor(encoded):
         import torch
@@ -55,7 +57,11 @@ def srgb_to_linear(encoded: ArrayT) -> ArrayT:
     return np.where(s <= _SRGB_ENCODED_BREAK, s / 12.92, ((s + 0.055) / 1.055) ** 2.4)
 
 
-def linear_to_srgb(linear: ArrayT) -> ArrayT:
+@overload
+def linear_to_srgb(linear: np.ndarray) -> np.ndarray: ...
+@overload
+def linear_to_srgb(linear: torch.Tensor) -> torch.Tensor: ...
+def linear_to_srgb(linear: Any) -> Any:
     """Inverse sRGB EOTF: linear intensity (clipped to [0, 1]) -> encoded values in [0, 1].
 
     For tensors the power branch is evaluated at ``max(x, 1e-12)``, so its gradient stays finite
@@ -71,7 +77,11 @@ def linear_to_srgb(linear: ArrayT) -> ArrayT:
     return np.where(x <= _SRGB_LINEAR_BREAK, x * 12.92, 1.055 * x ** (1 / 2.4) - 0.055)
 
 
-def luma(rgb_linear: ArrayT) -> ArrayT:
+@overload
+def luma(rgb_linear: np.ndarray) -> np.ndarray: ...
+@overload
+def luma(rgb_linear: torch.Tensor) -> torch.Tensor: ...
+def luma(rgb_linear: Any) -> Any:
     """BT.601 luma of linear RGB: [..., 3] -> [...] (float dtype of the input)."""
     if _is_tensor(rgb_linear):
         import torch
@@ -82,7 +92,11 @@ def luma(rgb_linear: ArrayT) -> ArrayT:
     return rgb @ np.asarray(LUMA_BT601, dtype=rgb.dtype)
 
 
-def to_uint8(values: ArrayT) -> ArrayT:
+@overload
+def to_uint8(values: np.ndarray) -> np.ndarray: ...
+@overload
+def to_uint8(values: torch.Tensor) -> torch.Tensor: ...
+def to_uint8(values: Any) -> Any:
     """Quantise values in [0, 1] (clipped) to 8 bits: ``round(255 x)``, ties to even."""
     if _is_tensor(values):
         import torch

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal
 
 import typer
 from rich.console import Console
@@ -93,7 +93,7 @@ def make_eventreplica_cmd(
         raise ConfigError("--replica-root needs at least one --scene NAME")
     if input is not None and scene:
         raise ConfigError("--scene only works with --replica-root")
-    kwargs = dict(
+    kwargs: dict[str, Any] = dict(
         stride=stride, fps=fps, exposure_ms=exposure_ms, upsample=upsample,
         interpolator=interpolator, width=width, height=height, resize=_parse_size(resize),
         first=first, max_frames=max_frames, cam_params=cam_params,
@@ -103,6 +103,7 @@ def make_eventreplica_cmd(
     if input is not None:
         outputs = [make_eventreplica(input, out, **kwargs)]
     else:
+        assert replica_root is not None  # exactly one of --input / --replica-root, checked above
         outputs = make_eventreplica_scenes(replica_root, scene or [], out, **kwargs)
     for path in outputs:
         Console().print(f"wrote {path}")

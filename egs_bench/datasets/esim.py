@@ -32,6 +32,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -309,7 +310,7 @@ def simulate(
     first = True
     images = iter(log_images)
     times = iter(times_us)
-    sentinel = object()
+    sentinel: Any = object()
     while True:
         image = next(images, sentinel)
         t_us = next(times, sentinel)

@@ -102,7 +102,7 @@ class EventWriter:
             for key, dtype in specs.items()
         }
         self._count = 0
-        self._last_t = None  # relative time of the last event written
+        self._last_t: int | None = None  # relative time of the last event written
         self._ms_to_idx: list[int] = [0]
 
     def append(self, events: Events) -> None:

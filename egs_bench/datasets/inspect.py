@@ -54,8 +54,8 @@ def sequence_summary(seq: Sequence, max_frames_for_blur: int = 20) -> dict[str, 
     duration_s = (seq.t_end_us[-1] - seq.t_start_us[0]) * 1e-6
     picks = np.unique(np.linspace(0, n - 1, min(n, max_frames_for_blur)).astype(int))
     extents = [e for e in (blur_extent_px(seq, int(i)) for i in picks) if e is not None]
-    ratios = [sharpness_ratio(seq.rgb(int(i)), seq.sharp(int(i))) for i in picks] \
-        if seq.has_sharp else []
+    sharp = {int(i): seq.sharp(int(i)) for i in picks} if seq.has_sharp else {}
+    ratios = [sharpness_ratio(seq.rgb(i), img) for i, img in sharp.items() if img is not None]
     summary: dict[str, Any] = {
         "name": seq.name,
         "path": str(seq.path),

@@ -237,6 +237,8 @@ def generate_sequence(
 
     with atomic_dir(out, replace=overwrite) as tmp:
         writer = SequenceWriter(tmp, meta, t_offset_us=int(boundaries[0]))
+        events = writer.events
+        assert events is not None  # t_offset_us given: the writer has an event file
         sampler = _Sampler(source, sampling, sim.eps)
         simulator = EventSimulator(sim, cam.height, cam.width)
         prev = sampler.render(int(boundaries[0]))
@@ -248,7 +250,7 @@ def generate_sequence(
                    disable=not progress)
         for t_b in boundaries[1:]:
             for cur in sampler.between(prev, int(t_b)):
-                writer.events.append(simulator.step(cur[2], cur[0]))
+                events.append(simulator.step(cur[2], cur[0]))
                 if frame < len(t_start) and t_start[frame] <= prev[0] and cur[0] <= t_end[frame]:
                     _blur_step(acc, prev[1].rgb, cur[1].rgb, cur[0] - prev[0])
                 dense_t.append(cur[0])

@@ -284,8 +284,9 @@ def _read_camera(
     root: Path, explicit: str | Path | None
 ) -> tuple[Intrinsics, float, Path | None]:
     """Intrinsics (egs-bench convention), depth scale and the file they came from."""
+    path: Path | None
     if explicit is not None:
-        path: Path | None = Path(explicit)
+        path = Path(explicit)
         if not path.is_file():
             raise InputError(path, "camera parameter file does not exist")
     else:

@@ -416,12 +416,12 @@ class SequenceWriter:
         ``pose`` the ``T_wc`` at exposure end. Returns the frame index."""
         i = len(self._rows)
         name = f"{i:06d}.png"
-        if self.with_sharp and sharp is None:
-            raise ValueError("sharp image required (with_sharp=True)")
+        if self.with_sharp:
+            if sharp is None:
+                raise ValueError("sharp image required (with_sharp=True)")
+            write_ldr_image(self.root / "sharp" / name, sharp)
         write_ldr_image(self.root / "rgb" / name, rgb)
         write_depth_png(self.root / "depth" / name, encode_depth(depth, self.meta["depth_scale"]))
-        if self.with_sharp:
-            write_ldr_image(self.root / "sharp" / name, sharp)
         self._rows.append({
             "index": i, "t_start_us": int(t_start_us), "t_end_us": int(t_end_us),
             "rgb": f"rgb/{name}", "depth": f"depth/{name}",

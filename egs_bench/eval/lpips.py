@@ -33,6 +33,7 @@ import pickle
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import torch
@@ -163,7 +164,8 @@ def _write_npz(path: Path, convs, heads, source: str, source_sha256: str) -> Non
     from egs_bench.fileio import atomic_path
 
     # plain arrays + unicode scalars only: loadable with allow_pickle=False
-    arrays = {"source": np.array(source), "source_sha256": np.array(source_sha256)}
+    arrays: dict[str, Any] = {"source": np.array(source),
+                              "source_sha256": np.array(source_sha256)}
     for j, (w, b) in enumerate(convs):
         arrays[f"conv{j}_weight"] = w
         arrays[f"conv{j}_bias"] = b
@@ -354,6 +356,10 @@ class LPIPS(nn.Module):
     ``forward(x, y)`` takes images [B, 3, H, W] in [0, 1] (float32) and returns [B] distances.
     """
 
+    shift: torch.Tensor
+    scale: torch.Tensor
+    features: _AlexFeatures | _VGGFeatures
+
     def __init__(self, weights: LpipsWeights) -> None:
         super().__init__()
         self.net_name = weights.net
@@ -366,9 +372,11 @@ class LPIPS(nn.Module):
                                    for c in _HEAD_CHANNELS[weights.net])
         with torch.no_grad():
             for conv, (w, b) in zip(self.features.convs, weights.convs, strict=True):
+                assert isinstance(conv, nn.Conv2d) and conv.bias is not None
                 conv.weight.copy_(torch.from_numpy(w))
                 conv.bias.copy_(torch.from_numpy(b))
             for head, w in zip(self.heads, weights.heads, strict=True):
+                assert isinstance(head, nn.Conv2d)
                 head.weight.copy_(torch.from_numpy(w))
         self.eval().requires_grad_(False)
 

@@ -47,7 +47,7 @@ def plot_trajectory_top_view(ate: AteResult, path: str | Path, title: str = "") 
     pts = ate.est_positions[:, [a, b]]
     segments = np.stack([pts[:-1], pts[1:]], axis=1)
     err_cm = 100 * ate.errors
-    lines = LineCollection(segments, cmap="viridis", lw=2, label="estimate (aligned)")
+    lines = LineCollection(list(segments), cmap="viridis", lw=2, label="estimate (aligned)")
     lines.set_array(0.5 * (err_cm[:-1] + err_cm[1:]))
     ax.add_collection(lines)
     ax.autoscale()

@@ -57,6 +57,8 @@ class LeakyPiecewiseLinearCRF(CameraResponse):
         init: ``"srgb"`` (nodes on the sRGB curve) or ``"linear"`` (identity on [0, 1]).
     """
 
+    levels: torch.Tensor
+
     def __init__(self, n_nodes: int = 16, alpha: float = 0.01, init: str = "linear") -> None:
         super().__init__()
         if n_nodes < 2:

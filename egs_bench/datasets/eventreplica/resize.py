@@ -75,7 +75,7 @@ class ResizeCrop:
     def rgb(self, image: np.ndarray, source: Intrinsics) -> np.ndarray:
         """Resize (area average) and crop a linear colour image [H, W, C] float32."""
         resized = self._resized_intrinsics(source)
-        img = np.asarray(image, dtype=np.float32)
+        img: np.ndarray = np.asarray(image, dtype=np.float32)
         if (resized.width, resized.height) != (source.width, source.height):
             img = cv2.resize(img, (resized.width, resized.height), interpolation=cv2.INTER_AREA)
         x0, y0 = self._offsets(resized)
