@@ -55,8 +55,9 @@ def read_meta(path: Path) -> dict[str, Any]:
 
     Checked: UTF-8 YAML mapping; the required keys are positive numbers; integer image size;
     intrinsics that describe a camera (field of view between 1 and 170 degrees, principal point
-    inside the image); and, where present, ``eps`` and both ``event_thresholds`` positive,
-    ``has_events`` a boolean, ``sigma`` and ``refractory_us`` not negative.
+    inside the image); and, where present, ``eps``, both ``event_thresholds``, ``frame_rate``
+    and ``exposure_us`` positive, ``has_events`` a boolean, ``sigma`` and ``refractory_us`` not
+    negative, ``crf`` a mapping, ``name`` text.
     """
     if not path.is_file():
         raise InputError(path, "meta.yaml not found (is this a sequence folder?)")
@@ -78,7 +79,7 @@ def read_meta(path: Path) -> dict[str, Any]:
         if int(meta[key]) != meta[key]:
             raise InputError(path, f"{key} must be an integer")
     _check_camera(path, meta)
-    _check_event_settings(path, meta)
+    _check_optional(path, meta)
     return meta
 
 
@@ -96,7 +97,7 @@ def _check_camera(path: Path, meta: dict[str, Any]) -> None:
                                    f"{size} {meta[size]})")
 
 
-def _check_event_settings(path: Path, meta: dict[str, Any]) -> None:
+def _check_optional(path: Path, meta: dict[str, Any]) -> None:
     if "has_events" in meta and not isinstance(meta["has_events"], bool):
         raise InputError(path, f"has_events must be true or false, got {meta['has_events']!r}")
     if "eps" in meta and (not _is_number(meta["eps"]) or meta["eps"] <= 0):
@@ -115,6 +116,15 @@ def _check_event_settings(path: Path, meta: dict[str, Any]) -> None:
         value = meta.get(key)
         if value is not None and (not _is_number(value) or value < 0):
             raise InputError(path, f"{key} must be a number >= 0, got {value!r}")
+    for key in ("frame_rate", "exposure_us"):
+        value = meta.get(key)
+        if value is not None and (not _is_number(value) or value <= 0):
+            raise InputError(path, f"{key} must be a positive number, got {value!r}")
+    if meta.get("crf") is not None and not isinstance(meta["crf"], dict):
+        raise InputError(path, f"crf must be a mapping describing the camera response, got "
+                               f"{meta['crf']!r}")
+    if meta.get("name") is not None and not isinstance(meta["name"], str | int | float):
+        raise InputError(path, f"name must be text, got {meta['name']!r}")
 
 
 def _read_frames_csv(path: Path) -> list[dict[str, str]]:

@@ -137,20 +137,22 @@ def plot_run(run_dir: str | Path, protocol: str = "egs",
     ate = compute_run_ate(run, proto, seq)
     label = f"{run.method} on {run.sequence_name}"
     top, over_time, grid = (run.plots_dir / name for name in PLOT_FILES)
-    out = [
-        plot_trajectory_top_view(ate, top, f"{label}: ATE RMSE {100 * ate.rmse:.2f} cm"),
-        plot_ate_over_time(ate, over_time, f"{label}: ATE over time"),
-    ]
+    # every input is read before the first plot is written: bad input leaves no partial set
+    rows: list[tuple[int, list[np.ndarray | None]]] = []
     rendered = run.render_indices()
     if seq is not None and rendered:
         if frames is None:
             picks = np.linspace(0, len(rendered) - 1, min(3, len(rendered))).round().astype(int)
             frames = [rendered[i] for i in sorted(set(picks.tolist()))]
-        rows = []
         for f in frames:
             if not 0 <= f < len(seq):
                 raise InputError(seq.path, f"frame {f} outside the sequence (0..{len(seq) - 1})")
             rows.append((f, [seq.rgb(f), run.read_render(f), seq.sharp(f)]))
+    out = [
+        plot_trajectory_top_view(ate, top, f"{label}: ATE RMSE {100 * ate.rmse:.2f} cm"),
+        plot_ate_over_time(ate, over_time, f"{label}: ATE over time"),
+    ]
+    if rows:
         out.append(plot_qualitative_grid(rows, ["observed (blurred)", run.method, "sharp GT"],
                                          grid, label))
     return out

@@ -165,6 +165,12 @@ def make_eventreplica_scenes(
     missing = [s for s in scenes if not (root / s).is_dir()]
     if missing:
         raise InputError(root / missing[0], "scene folder does not exist")
+    # every scene's input and output are checked before the first is generated, so a bad
+    # scene or output path does not stop the batch half-way
+    for s in scenes:
+        prepare_output(Path(out) / s, "sequence", overwrite=bool(kwargs.get("overwrite")),
+                       inputs=[root / s, kwargs.get("cam_params")])
+        read_replica(root / s, cam_params=kwargs.get("cam_params"))
     return [make_eventreplica(root / s, Path(out) / s, **kwargs) for s in scenes]
 
 
