@@ -1,4 +1,4 @@
-"""ESIM-style event simulation from a stream of log-brightness samples (DESIGN §4).
+"""ESIM-style event simulation from a stream of log-brightness samples (docs/design.md §4).
 
 Model (per pixel, following ESIM, Rebecq et al. 2018):
 

@@ -1,8 +1,8 @@
 """Event arrays in memory, DSEC-style HDF5 storage, time-window slicing and event maps.
 
-In memory (DESIGN §2): ``x, y`` uint16 (column, row), ``t`` int64 microseconds, ``p`` int8 in
-{+1, -1}. On disk: ``events/{x,y,t,p}`` with ``p`` in {0, 1} and ``t`` relative to ``t_offset``,
-plus ``ms_to_idx`` (index of the first event with ``t >= t_offset + 1000 * i``).
+In memory (docs/design.md §2): ``x, y`` uint16 (column, row), ``t`` int64 microseconds, ``p``
+int8 in {+1, -1}. On disk (§3): ``events/{x,y,t,p}`` with ``p`` in {0, 1} and ``t`` relative to
+``t_offset``, plus ``ms_to_idx`` (index of the first event with ``t >= t_offset + 1000 * i``).
 """
 
 from __future__ import annotations

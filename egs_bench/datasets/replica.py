@@ -12,7 +12,7 @@ Defaults when no ``cam_params.json`` exists: ``1200 x 680``, ``fx = fy = 600``,
 
 **Pixel convention.** Replica/NICE-SLAM intrinsics put the centre of pixel ``u`` at the integer
 ``u`` (the image centre of a 1200-wide image is ``599.5``). egs-bench uses gsplat's convention
-where that centre is at ``u + 0.5`` (DESIGN §2). The reader therefore returns
+where that centre is at ``u + 0.5`` (docs/design.md §2). The reader therefore returns
 ``cx_ours = cx + 0.5`` and ``cy_ours = cy + 0.5`` (``600, 340`` by default); the writer
 subtracts the 0.5 again, so a read/write round trip is exact.
 

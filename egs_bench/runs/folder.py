@@ -439,7 +439,7 @@ class RunFolder:
         if self._lock is not None and self._beat_thread is None:
             self._beat_stop.clear()
             self._beat_thread = threading.Thread(target=self._heartbeat_loop, daemon=True,
-                                                 name=f"heartbeat {self.path.name}")
+                                                 name=f"heartbeat {self.path}")
             self._beat_thread.start()
 
     def mark_done(self) -> None:

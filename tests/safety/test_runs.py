@@ -135,7 +135,7 @@ def test_heartbeat_refreshes_while_running_and_stops_at_the_end(tmp_path, tiny_s
     assert _status(run.path)["heartbeat_utc"] != first
     assert _status(run.path)["updated_utc"] == first  # the state did not change
     run.mark_done()
-    assert not any(t.name.startswith("heartbeat") for t in threading.enumerate())
+    assert f"heartbeat {run.path}" not in {t.name for t in threading.enumerate()}
     assert _status(run.path)["state"] == "done"
 
 
