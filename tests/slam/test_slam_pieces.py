@@ -243,7 +243,7 @@ def test_window_removal_overlap_then_dso() -> None:
 def test_normalised_depth_keeps_alpha_in_the_graph() -> None:
     """L_D on the rasteriser's sum(w z) / sum(w): a lone surface renders the same normalised
     depth whatever its opacity, so the depth term must not move the opacity (with alpha
-    detached it lowered it: the holes of docs/notes/slam.md finding 16)."""
+    detached, the gradient lowers the opacity of sparse surfaces until the map has holes)."""
     h, w = 4, 5
     ones = torch.ones(h, w, dtype=torch.bool)
     obs = FrameObs(0, torch.full((h, w, 3), 0.5), torch.full((h, w), 2.0), ones, ones, None,
