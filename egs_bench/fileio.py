@@ -97,10 +97,10 @@ def _check_replaceable(tmp: Path, final: Path) -> None:
 def atomic_path(final: str | Path) -> Iterator[Path]:
     """Yield a temporary path next to ``final``; rename it over ``final`` on success.
 
-    The temporary name keeps ``final``'s suffix (writers that pick the format from the
-    extension still work). On an exception the temporary path is removed and ``final`` is left
-    untouched. An existing file is replaced; a directory never is (except an empty one by a
-    directory), and a file never replaces a directory or vice versa.
+    The temporary name, ``.<name>.<random>.part<suffix>``, keeps ``final``'s suffix (writers
+    that pick the format from the extension still work). On an exception the temporary path is
+    removed and ``final`` is left untouched. An existing file is replaced; a directory never is
+    (except an empty one by a directory), and a file never replaces a directory or vice versa.
 
     Raises:
         OutputError: ``final`` is a directory (or a file where a directory was written).
@@ -109,11 +109,11 @@ def atomic_path(final: str | Path) -> Iterator[Path]:
     final = Path(final)
     if final.name in ("", ".", ".."):
         raise OutputError(final, "not a file name")
-    if final.is_dir() and not final.is_symlink():
+    if final.is_dir() and not final.is_symlink() and any(final.iterdir()):
         # checked before writing anything: a whole render is not wasted on a doomed rename
-        raise OutputError(final, "is a folder; refusing to replace it with a file")
+        raise OutputError(final, "is a folder that is not empty; refusing to replace it")
     ensure_parent(final)
-    tmp = final.parent / f".{final.name}.{uuid.uuid4().hex[:12]}.tmp{final.suffix}"
+    tmp = final.parent / f".{final.name}.{uuid.uuid4().hex[:12]}.part{final.suffix}"
     try:
         yield tmp
         _check_replaceable(tmp, final)

@@ -1,4 +1,5 @@
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -38,7 +39,8 @@ def test_run_folder_roundtrip(tmp_path) -> None:
     assert timing is not None and timing.fps == 2.0 and timing.render_fps == 100.0
     assert again.read_status().state == "done"
     assert "hello" in again.log_path.read_text()
-    assert not list(again.path.glob("*.tmp")) and not list(again.path.glob(".*tmp"))
+    hidden = [p.relative_to(again.path) for p in again.path.rglob(".*")]
+    assert hidden == [Path(".lock")]  # no temporary file left by the atomic writes
     assert find_runs(tmp_path) == [tmp_path / "r"]
 
 

@@ -94,9 +94,15 @@ def test_overwrite_replaces_only_an_output_of_the_same_kind(tmp_path, tiny_seque
 
 def test_atomic_writes_refuse_folders_and_leave_no_temporary_files(tmp_path):
     folder = _user_folder(tmp_path / "out.txt")
-    with pytest.raises(OutputError, match="is a folder; refusing to replace it with a file"):
+    with pytest.raises(OutputError, match="is a folder that is not empty; refusing to replace"):
         with atomic_path(folder) as tmp:
             tmp.write_text("x")
+    empty = tmp_path / "empty.txt"
+    empty.mkdir()
+    with pytest.raises(OutputError, match="is a folder; refusing to replace it with a file"):
+        with atomic_path(empty) as tmp:
+            tmp.write_text("x")
+    empty.rmdir()
     with pytest.raises(RuntimeError), atomic_path(tmp_path / "f.txt") as tmp:
         tmp.write_text("half")
         raise RuntimeError("writer failed")
