@@ -236,3 +236,13 @@ def _plane(tmp_path: Path) -> Path:
     from plane_scene import make_plane_sequence
 
     return make_plane_sequence(tmp_path / "seq", frames=2)
+
+
+def test_overwrite_never_replaces_a_file_inside_an_input_folder(seq_copy, capsys):
+    frame = seq_copy / "rgb" / "000001.png"
+    before = frame.read_bytes()
+    code, err = _cli(capsys, "show", seq_copy, "--frame", "1", "--out", frame, "--overwrite")
+    assert code == 2 and f"is inside the input {seq_copy}; refusing to replace it" in err
+    assert frame.read_bytes() == before
+    new = seq_copy / "panel.png"  # a new file next to the inputs replaces nothing: allowed
+    assert _cli(capsys, "show", seq_copy, "--frame", "1", "--out", new)[0] == 0
