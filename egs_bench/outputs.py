@@ -9,8 +9,8 @@
   files) by a sequence folder, a run folder (``run.yaml`` written by egs-bench) by a run folder;
   an empty folder counts as free for folder outputs;
 * never, even with ``overwrite``: an input of the command, a folder containing one or an
-  existing file inside an input folder, the current directory or one of its parents, the home
-  directory or one of its parents, ``/``.
+  existing file (PNG, PLY, text) inside an input folder, the current directory or one of its
+  parents, the home directory or one of its parents, ``/``.
 
 The checks are made on resolved paths (symbolic links and ``..`` followed).
 """
@@ -177,7 +177,8 @@ def prepare_output(path: str | Path, kind: OutputKind, *, overwrite: bool = Fals
     shown = Path(path)
     out = _resolve(shown)
     exists = shown.exists() or shown.is_symlink()
-    _check_not_input(out, inputs, shown, replacing=exists)
+    # a file inside an input folder may be part of the input (a frame, a map): never replaced
+    _check_not_input(out, inputs, shown, replacing=exists and kind in ("png", "ply", "text"))
     if exists:
         protected = _protected(out)
         if protected:
