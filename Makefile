@@ -9,7 +9,7 @@ export EGS_BENCH_CACHE := $(CURDIR)/.cache/egs_bench
 export MPLBACKEND := Agg
 export OMP_WAIT_POLICY := PASSIVE
 
-.PHONY: setup demo test lint bench clean
+.PHONY: setup demo test lint bench gpu-check clean
 
 setup: $(STAMP)
 
@@ -35,6 +35,11 @@ test: setup lint
 
 bench: setup
 	$(BIN)/python benchmarks/run_all.py
+
+# On a CUDA machine: builds gsplat, runs the CUDA tests, times egs/monogs (writes gpu_check.json).
+gpu-check:
+	$(BIN)/pip install -q -c constraints.txt -e ".[cuda]"
+	PYTHON=$(BIN)/python bash benchmarks/gpu_check.sh
 
 clean:
 	rm -rf $(VENV) .cache demo_out .pytest_cache .ruff_cache

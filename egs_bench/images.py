@@ -49,12 +49,21 @@ def read_ldr_image(path: str | Path) -> np.ndarray:
     return np.ascontiguousarray(image[:, :, 2::-1])
 
 
-def write_ldr_image(path: str | Path, image: np.ndarray, jpeg_quality: int = 95) -> Path:
-    """Write uint8 [H, W, 3] RGB as a PNG (or a JPEG, by the suffix), atomically."""
+def write_ldr_image(path: str | Path, image: np.ndarray, jpeg_quality: int = 95,
+                    jpeg_chroma_444: bool = False) -> Path:
+    """Write uint8 [H, W, 3] RGB as a PNG (or a JPEG, by the suffix), atomically.
+
+    ``jpeg_chroma_444`` keeps full-resolution colour in a JPEG (no 4:2:0 subsampling).
+    """
     image = np.asarray(image)
     if image.dtype != np.uint8 or image.ndim != 3 or image.shape[2] != 3:
         raise ValueError(f"LDR image must be uint8 [H, W, 3], got {image.dtype} {image.shape}")
-    return _encode(Path(path), np.ascontiguousarray(image[:, :, ::-1]), jpeg_quality)
+    params: list[int] = []
+    if Path(path).suffix.lower() in (".jpg", ".jpeg"):
+        params = [cv2.IMWRITE_JPEG_QUALITY, int(jpeg_quality)]
+        if jpeg_chroma_444:
+            params += [cv2.IMWRITE_JPEG_SAMPLING_FACTOR, cv2.IMWRITE_JPEG_SAMPLING_FACTOR_444]
+    return _encode(Path(path), np.ascontiguousarray(image[:, :, ::-1]), params)
 
 
 def read_depth_png(path: str | Path) -> np.ndarray:
@@ -76,12 +85,11 @@ def write_depth_png(path: str | Path, raw: np.ndarray) -> Path:
     raw = np.asarray(raw)
     if raw.dtype != np.uint16 or raw.ndim != 2:
         raise ValueError(f"depth PNG must be uint16 [H, W], got {raw.dtype} {raw.shape}")
-    return _encode(Path(path), raw)
+    return _encode(Path(path), raw, [])
 
 
-def _encode(path: Path, pixels: np.ndarray, jpeg_quality: int = 95) -> Path:
+def _encode(path: Path, pixels: np.ndarray, params: list[int]) -> Path:
     suffix = path.suffix.lower() or ".png"
-    params = [cv2.IMWRITE_JPEG_QUALITY, int(jpeg_quality)] if suffix in (".jpg", ".jpeg") else []
     ok, encoded = cv2.imencode(suffix, pixels, params)
     if not ok:
         raise OSError(f"could not encode {path.name} as {suffix}")

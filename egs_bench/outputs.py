@@ -154,6 +154,27 @@ def _same_kind(path: Path, kind: OutputKind) -> tuple[bool, str]:
     return text_ok, "is not a text file"
 
 
+def check_never_replaced(path: str | Path, inputs: Iterable[str | Path | None] = (),
+                         option: str = "--out") -> None:
+    """The rules that hold for every output, whatever its kind: not an input, not a folder
+    containing one, not the current or home directory or a parent of them, not ``/``.
+
+    For writers that decide the same-kind question themselves (e.g. an export folder
+    recognised by its manifest); :func:`prepare_output` applies these rules too.
+
+    Raises:
+        OutputError: naming the path and the rule.
+    """
+    shown = Path(path)
+    out = _resolve(shown)
+    _check_not_input(out, inputs, shown, replacing=False)
+    if shown.exists():
+        protected = _protected(out)
+        if protected:
+            raise OutputError(shown, f"{protected}; refusing to write over it (choose a new "
+                                     f"{option})")
+
+
 def prepare_output(path: str | Path, kind: OutputKind, *, overwrite: bool = False,
                    inputs: Iterable[str | Path | None] = (), option: str = "--out") -> Path:
     """Check that ``path`` may be written as an output of ``kind`` (rules in the module doc).

@@ -220,6 +220,7 @@ def export_replica_layout(
     image_format: str = "jpg",
     jpeg_quality: int = 95,
     overwrite: bool = False,
+    jpeg_chroma_444: bool = False,
 ) -> Path:
     """Write an RGB-D + pose sequence in the NICE-SLAM Replica layout (atomically).
 
@@ -236,6 +237,7 @@ def export_replica_layout(
         image_format: ``"jpg"`` (as NICE-SLAM) or ``"png"`` (lossless, for exact tests).
         jpeg_quality: JPEG quality 1..100.
         overwrite: replace an existing ``out_dir``.
+        jpeg_chroma_444: keep full-resolution colour (no 4:2:0 chroma subsampling).
 
     Returns:
         ``out_dir``.
@@ -260,7 +262,8 @@ def export_replica_layout(
             raw = np.round(depth * depth_scale)
             if raw.max() > 65535:
                 raise ValueError(f"frame {i}: depth {depth.max():.3f} m overflows 16 bits")
-            write_ldr_image(results / f"frame{i:06d}.{image_format}", rgb, jpeg_quality)
+            write_ldr_image(results / f"frame{i:06d}.{image_format}", rgb, jpeg_quality,
+                            jpeg_chroma_444)
             write_depth_png(results / f"depth{i:06d}.png", raw.astype(np.uint16))
         lines = [" ".join(f"{v:.17g}" for v in pose.reshape(-1)) for pose in poses]
         (tmp / "traj.txt").write_text("\n".join(lines) + "\n")

@@ -4,6 +4,7 @@ Every method run writes one folder; ``egs-bench eval`` reads it and adds ``metri
 
     <run>/run.yaml          identity: method name, sequence name + path, egs-bench version,
                             optional ``groundtruth`` (a TUM file, for runs with no sequence folder),
+                            optional ``estimate`` (imports: what the external output covers),
                             ``artifacts`` (method-specific files, e.g. ``map.ply``)
     <run>/config.yaml       the method's fully resolved configuration
     <run>/status.json       {"state": "running"|"done"|"failed"|"interrupted", "reason",
@@ -89,6 +90,10 @@ STATES = ("running", "done", "failed", "interrupted")
 HEARTBEAT_S = 60.0
 #: a ``running`` run written on another host is interrupted after this long without heartbeat
 STALE_AFTER_S = 600.0
+#: ``run.yaml`` ``estimate`` keys and their values for a method's own run (every frame has a
+#: pose and a render, metric scale). Imports of external outputs record what they really hold.
+ESTIMATE_DEFAULTS: dict[str, Any] = {"poses": "all", "renders": "all", "scale_free": False}
+ESTIMATE_COVERAGE = ("all", "keyframes", "subset", "none")
 _RENDER_NAME = re.compile(r"^(\d{6,})\.png$")
 
 
@@ -214,6 +219,7 @@ class RunFolder:
         config: Mapping[str, Any] | None = None,
         groundtruth: str | Path | None = None,
         overwrite: bool = False,
+        estimate: Mapping[str, Any] | None = None,
         inputs: Sequence[str | Path] = (),
     ) -> RunFolder:
         """Create a run folder, take its lock, write ``run.yaml`` + ``config.yaml`` and mark
@@ -231,6 +237,10 @@ class RunFolder:
             overwrite: replace an existing run folder written by egs-bench. Only the files a
                 run writes are removed (the standard files, ``renders/NNNNNN.png``, the plots,
                 the ``artifacts`` of ``run.yaml``); anything else in the folder is kept.
+            estimate: what the estimate covers, for imported external outputs: ``poses`` and
+                ``renders`` each ``"all"``, ``"keyframes"``, ``"subset"`` or ``"none"``,
+                ``scale_free`` (monocular: evaluated with Sim(3)), plus free-form ``source`` /
+                ``format`` entries. Omitted: :data:`ESTIMATE_DEFAULTS`.
             inputs: further input files or folders the output may not replace (the sequence
                 folder and ground truth are always protected).
 
@@ -243,6 +253,9 @@ class RunFolder:
             raise ValueError("method and sequence_name must be non-empty")
         if sequence_path is None and groundtruth is None:
             raise ValueError("a run needs a sequence_path or a groundtruth trajectory")
+        for key in ("poses", "renders"):
+            if estimate is not None and estimate.get(key, "all") not in ESTIMATE_COVERAGE:
+                raise ValueError(f"estimate {key} must be one of {ESTIMATE_COVERAGE}")
         protected = [p for p in (sequence_path, groundtruth, *inputs) if p is not None]
         cls._refuse_if_locked(path)
         prepare_output(path, "run", overwrite=overwrite, inputs=protected)
@@ -269,6 +282,8 @@ class RunFolder:
                 "created_utc": _now_utc(),
                 "artifacts": [],
             }
+            if estimate is not None:
+                info["estimate"] = {**ESTIMATE_DEFAULTS, **dict(estimate)}
             write_text_atomic(path / RUN_FILE, _dump_yaml(info))
             run = cls(path, info)
             run._lock = lock
@@ -377,6 +392,12 @@ class RunFolder:
         """Explicit ground-truth TUM file overriding the sequence's, if any."""
         p = self._info.get("groundtruth")
         return Path(p) if p else None
+
+    @property
+    def estimate(self) -> dict[str, Any]:
+        """What the estimate covers (``run.yaml`` ``estimate``, defaults for own runs)."""
+        value = self._info.get("estimate")
+        return {**ESTIMATE_DEFAULTS, **(value if isinstance(value, dict) else {})}
 
     @property
     def info(self) -> dict[str, Any]:
