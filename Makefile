@@ -28,6 +28,7 @@ demo: setup
 
 lint: setup
 	$(BIN)/ruff check egs_bench tests benchmarks
+	$(BIN)/mypy
 
 test: setup lint
 	$(BIN)/python -m pytest -q

@@ -58,9 +58,9 @@ def main() -> None:
     ap.add_argument("--full-res-frames", type=int, default=4)
     ap.add_argument("--repeats", type=int, default=3, help="timing: best of N per frame")
     args = ap.parse_args()
-    from egs_bench.slam.runner import resolve_sequence
+    from egs_bench.datasets.registry import load_sequence
 
-    rows = [bench(resolve_sequence(name), args.repeats) for name in (args.seq or ["demo-fast"])]
+    rows = [bench(load_sequence(name), args.repeats) for name in (args.seq or ["demo-fast"])]
     if args.full_res_frames > 0:
         from egs_bench.datasets.synthetic import make_synthetic
 

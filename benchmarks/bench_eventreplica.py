@@ -33,7 +33,7 @@ from tabulate import tabulate
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "datasets"))
 import replica_testscene as scene  # noqa: E402
 
-from egs_bench.datasets.color import linear_to_srgb  # noqa: E402
+from egs_bench.color import linear_to_srgb  # noqa: E402
 from egs_bench.datasets.eventreplica import (  # noqa: E402
     INTERPOLATORS,
     ReplicaSource,

@@ -39,11 +39,11 @@ from pathlib import Path
 
 import pandas as pd
 
+from egs_bench.datasets.registry import load_sequence
 from egs_bench.eval.evaluate import evaluate_run
 from egs_bench.runs.registry import get_method
 from egs_bench.slam.config import parse_overrides
 from egs_bench.slam.methods import BUILTIN, ConfiguredSlamMethod
-from egs_bench.slam.runner import resolve_sequence
 
 DEFAULT_METHODS = ["monogs", "monogs-edi", "egs-no-events", "egs-no-event-mapping",
                    "egs-no-event-tracking", "egs-no-crf", "egs-no-ne-loss", "egs"]
@@ -63,7 +63,7 @@ def _run_one(job: tuple[str, str, int], args: argparse.Namespace) -> dict:
         numba.set_num_threads(1)
         torch.set_num_threads(1)
     name, method, seed = job
-    seq = resolve_sequence(name)
+    seq = load_sequence(name)
     m = get_method(method) if method not in BUILTIN else BUILTIN[method]
     run_dir = args.out / seq.name / method
     if len(args.seeds) > 1:
@@ -153,7 +153,7 @@ def main() -> None:
     jobs = [(name, method, seed) for name in args.seq for method in args.methods.split(",")
             if method in MAIN_METHODS or name in ablation_seqs for seed in args.seeds]
     for name in args.seq:  # generate built-in sequences once, before parallel runs race on them
-        resolve_sequence(name)
+        load_sequence(name)
     if args.jobs > 1:
         # spawn: generating sequences above started OpenMP threads, and forking after that aborts
         spawn = multiprocessing.get_context("spawn")

@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 from tabulate import tabulate
 
-from egs_bench.datasets.color import CameraResponse
+from egs_bench.color import LdrResponse
 from egs_bench.datasets.pipeline import SamplingConfig
 from egs_bench.datasets.synthetic import SCENES, Renderer, build_scene, make_synthetic, pack_scene
 from egs_bench.datasets.synthetic.source import default_intrinsics
@@ -78,19 +78,18 @@ def bench_sequence(scene: str, frames: int, width: int, height: int,
 
 
 def write_montage(path: Path, width: int, height: int) -> None:
-    import imageio.v3 as iio
+    from egs_bench.images import write_ldr_image
 
     cam = default_intrinsics(width, height)
     tiles = []
     for name in SCENES:
         scene = build_scene(name)
         rgb, _ = Renderer(pack_scene(scene), cam, supersample=3).render(scene.anchor_pose())
-        tiles.append(CameraResponse().to_ldr(rgb))
+        tiles.append(LdrResponse().to_ldr(rgb))
     rows = [np.concatenate(tiles[i:i + 2], axis=1) for i in range(0, len(tiles), 2)]
     if rows[-1].shape != rows[0].shape:
         rows[-1] = np.pad(rows[-1], ((0, 0), (0, rows[0].shape[1] - rows[-1].shape[1]), (0, 0)))
-    path.parent.mkdir(parents=True, exist_ok=True)
-    iio.imwrite(path, np.concatenate(rows, axis=0))
+    write_ldr_image(path, np.concatenate(rows, axis=0))
 
 
 def main() -> None:

@@ -20,13 +20,14 @@ from pathlib import Path
 import numpy as np
 
 import egs_bench.slam.system as slam_system
+from egs_bench.datasets.registry import load_sequence
 from egs_bench.eval.evaluate import evaluate_run
 from egs_bench.geometry import invert_pose
 from egs_bench.geometry.se3 import interpolate_trajectory
 from egs_bench.runs.registry import get_method
 from egs_bench.slam.config import parse_overrides
 from egs_bench.slam.frames import FrameState
-from egs_bench.slam.runner import resolve_sequence, run_slam
+from egs_bench.slam.runner import run_slam
 
 
 def install_oracle(seq) -> None:
@@ -61,7 +62,7 @@ def main() -> None:
     ap.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE")
     ap.add_argument("--out", type=Path, default=Path("bench_out/oracle"))
     args = ap.parse_args()
-    seq = resolve_sequence(args.seq)
+    seq = load_sequence(args.seq)
     install_oracle(seq)
     options = parse_overrides(args.overrides)
     print("| method | PSNR dB | SSIM |")

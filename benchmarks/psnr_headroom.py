@@ -20,8 +20,8 @@ import argparse
 import cv2
 import numpy as np
 
+from egs_bench.datasets.registry import load_sequence
 from egs_bench.eval.image_metrics import psnr_masked
-from egs_bench.slam.runner import resolve_sequence
 
 
 def resolution_round_trip(image: np.ndarray, scale: float) -> np.ndarray:
@@ -40,7 +40,7 @@ def main() -> None:
     print(f"| sequence | blurred input dB | sharp at scale {args.scale} dB | headroom dB |")
     print("|:--|--:|--:|--:|")
     for name in args.seq:
-        seq = resolve_sequence(name)
+        seq = load_sequence(name)
         blurred, ceiling = [], []
         for i in range(0, len(seq), args.stride):
             sharp = seq.sharp(i)

@@ -1,7 +1,8 @@
 """The end-to-end demo behind ``make demo``: data -> EGS-SLAM and the MonoGS-style baseline ->
 evaluation -> leaderboard and plots, on a built-in blurred synthetic sequence.
 
-Re-running resumes: the generated sequence and finished runs are reused.
+Re-running resumes: the generated sequence and finished runs are reused; the demo's own
+unfinished runs (failed, interrupted) are run again and its frame panel is rewritten.
 """
 
 from __future__ import annotations
@@ -39,21 +40,24 @@ def run_demo(out: str | Path, *, sequence: str = DEMO_SEQUENCE,
         progress: show progress bars.
     """
     from egs_bench.datasets.inspect import save_frame_panel, sequence_summary
-    from egs_bench.datasets.registry import resolve_sequence
-    from egs_bench.datasets.sequence import Sequence
+    from egs_bench.datasets.registry import load_sequence
     from egs_bench.eval.evaluate import evaluate_run
     from egs_bench.eval.leaderboard import leaderboard
     from egs_bench.eval.plots import plot_run
+    from egs_bench.outputs import prepare_output
     from egs_bench.runs.folder import RunFolder
-    from egs_bench.runs.registry import get_method
+    from egs_bench.runs.registry import get_method, supports_overwrite
 
     out = Path(out)
     say(f"[1/4] sequence {sequence!r} (generated on first use)")
-    seq = Sequence.open(resolve_sequence(sequence, progress=progress))
+    seq = load_sequence(sequence, progress=progress)
+    # the demo rewrites its own panel and re-runs its own unfinished runs, nothing else
+    panel_path = prepare_output(out / f"{seq.name}_frame.png", "png", overwrite=True,
+                                inputs=[seq.path])
     summary = sequence_summary(seq)
     say("      " + ", ".join(f"{k}={summary[k]}" for k in (
         "frames", "resolution", "exposure_ms", "events", "blur_extent_px_mean") if k in summary))
-    panel = save_frame_panel(seq, len(seq) // 2, out / f"{seq.name}_frame.png")
+    panel = save_frame_panel(seq, len(seq) // 2, panel_path)
     result = DemoResult(sequence=seq.path, panel=panel)
 
     say(f"[2/4] running {', '.join(methods)} (preset {preset})")
@@ -65,8 +69,9 @@ def run_demo(out: str | Path, *, sequence: str = DEMO_SEQUENCE,
         if finished:
             say(f"      {name}: reusing finished run {run_dir}")
         else:
+            extra = {"overwrite": True} if supports_overwrite(method) else {}
             method.run(seq, run_dir, preset=preset, device="cpu", seed=0, max_frames=None,
-                       progress=progress)
+                       progress=progress, **extra)
         result.runs[name] = run_dir
 
     say("[3/4] evaluating (protocol egs: ATE on all frames, renders vs sharp GT)")

@@ -1,19 +1,40 @@
-"""Exceptions that the CLI reports as one clear line (no traceback unless ``--debug``)."""
+"""Exceptions, sorted by who made the mistake, and the exit codes the CLI maps them to.
+
+* :class:`ConfigError`: the user gave an option or configuration value that cannot work
+  (exit code 2, like a command-line usage error).
+* :class:`OutputError`: the output path the user chose may not be written: it exists and
+  ``--overwrite`` was not given, or it is of another kind, the input, a parent of the input, the
+  current directory or the home directory (exit code 2).
+* :class:`InputError`: a file or folder given to egs-bench is missing, malformed or inconsistent,
+  or an output location cannot be written (exit code 3).
+* Anything else (``ValueError``, ``TypeError``, ...) raised inside the library is a programming
+  error, e.g. a tensor of the wrong shape passed by calling code; the CLI reports it as an
+  internal error (exit code 70).
+* :class:`Interrupted`: SIGINT or SIGTERM arrived (exit code 128 + signal number).
+"""
 
 from __future__ import annotations
 
+import signal
 from pathlib import Path
+
+#: exit codes of the ``egs-bench`` command (documented in the README, "Guarantees")
+EXIT_OK = 0
+EXIT_USAGE = 2
+EXIT_DATA = 3
+EXIT_INTERNAL = 70  # EX_SOFTWARE of sysexits.h
 
 
 class EgsBenchError(Exception):
-    """Base class for errors a user can act on (bad input, missing data, bad options)."""
+    """Base class for errors a user can act on; the CLI prints one line and exits with
+    :attr:`exit_code`."""
+
+    exit_code: int = EXIT_DATA
 
 
-class InputError(EgsBenchError):
-    """A file or folder given to egs-bench is missing, malformed or inconsistent.
-
-    The message always names the offending path first: ``"<path>: <what is wrong>"``.
-    """
+class PathError(EgsBenchError):
+    """An error about one file or folder; the message names it first:
+    ``"<path>: <what is wrong>"``."""
 
     def __init__(self, path: str | Path, problem: str) -> None:
         self.path = Path(path)
@@ -21,5 +42,39 @@ class InputError(EgsBenchError):
         super().__init__(f"{self.path}: {problem}")
 
 
+class InputError(PathError):
+    """A file or folder given to egs-bench is missing, malformed or inconsistent."""
+
+    exit_code = EXIT_DATA
+
+
 class ConfigError(EgsBenchError):
-    """An option or configuration value is invalid."""
+    """An option or configuration value is invalid (a user mistake, never a data problem)."""
+
+    exit_code = EXIT_USAGE
+
+
+class OutputError(PathError):
+    """An output path may not be written (exists, wrong kind, is the input, in use...)."""
+
+    exit_code = EXIT_USAGE
+
+
+class UnwritableOutputError(OutputError):
+    """An output location cannot be written (read-only folder, not a folder, no space)."""
+
+    exit_code = EXIT_DATA
+
+
+class Interrupted(KeyboardInterrupt):  # noqa: N818 (a KeyboardInterrupt, named like one)
+    """SIGINT or SIGTERM arrived. Subclasses ``KeyboardInterrupt`` so that code which cleans up
+    after Ctrl-C (temporary folders, run folders marked interrupted) does the same after a
+    cluster's SIGTERM."""
+
+    def __init__(self, signum: int = signal.SIGINT) -> None:
+        self.signum = int(signum)
+        super().__init__(f"interrupted by {signal.Signals(self.signum).name}")
+
+    @property
+    def exit_code(self) -> int:
+        return 128 + self.signum

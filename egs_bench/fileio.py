@@ -1,51 +1,302 @@
-"""Atomic file and folder writes: outputs are written to a temporary path, then renamed.
+"""Atomic writes and advisory locks: the primitives behind every output egs-bench writes.
 
-A crash or Ctrl-C therefore never leaves a half-written file under the final name.
+* :func:`atomic_path` writes one file (or a small folder) under a hidden temporary name next to
+  the target and renames it into place, so a crash or Ctrl-C never leaves a half-written file
+  under the final name. It never replaces a directory with a file, a file with a directory, or a
+  non-empty directory.
+* :func:`atomic_dir` builds a whole folder (a generated sequence) in a hidden staging folder and
+  renames it into place; with ``replace=True`` an existing folder is swapped out *after* the new
+  one is complete and only then deleted. Staging folders carry an owner lock, so a staging folder
+  left behind by a killed process (SIGKILL, power loss) is recognised and removed by the next
+  write of the same target.
+* :class:`FileLock` is an exclusive ``flock`` on a file; the kernel drops it when its process
+  dies, however it dies, which is what makes stale run folders and staging folders detectable.
+
+What may be replaced at all (``--overwrite`` rules) is decided by :mod:`egs_bench.outputs`.
+:func:`read_text` is the one way text inputs are read, so a binary or unreadable file is always
+reported as an :class:`~egs_bench.errors.InputError` naming it.
 """
 
 from __future__ import annotations
 
 import contextlib
+import fcntl
 import os
 import shutil
+import socket
 import tempfile
+import time
+import uuid
 from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from egs_bench.errors import InputError, OutputError, UnwritableOutputError
+
+#: a staging folder without an owner lock file older than this is considered abandoned
+_STAGING_GRACE_S = 60.0
+_OWNER_FILE = ".owner"
+
+
+def read_text(path: str | Path, what: str = "file") -> str:
+    """The UTF-8 text of ``path``.
+
+    Raises:
+        InputError: missing (``"<what> not found"``), unreadable, or not UTF-8 text.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(path, f"{what} not found")
+    try:
+        return path.read_bytes().decode("utf-8")
+    except UnicodeDecodeError:
+        raise InputError(path, "not a UTF-8 text file (binary or corrupt)") from None
+    except OSError as exc:
+        raise InputError(path, f"cannot read ({exc.strerror or exc})") from None
+
+
+def ensure_parent(path: Path) -> None:
+    """Create ``path``'s parent folders; a folder that cannot be created is reported as an
+    :class:`UnwritableOutputError` naming it."""
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except FileExistsError:
+        raise UnwritableOutputError(path, "a parent of this path is a file, not a folder") \
+            from None
+    except OSError as exc:
+        raise UnwritableOutputError(path.parent, f"cannot create the folder "
+                                                 f"({exc.strerror or exc})") from None
+    if not os.access(path.parent, os.W_OK | os.X_OK):
+        raise UnwritableOutputError(path.parent, "folder is not writable")
+
+
+def _remove(path: Path) -> None:
+    if path.is_dir() and not path.is_symlink():
+        shutil.rmtree(path, ignore_errors=True)
+    else:
+        with contextlib.suppress(FileNotFoundError):
+            path.unlink()
+
+
+def _check_replaceable(tmp: Path, final: Path) -> None:
+    """Refuse renames that would destroy something of another kind or a non-empty folder."""
+    if not final.exists() or final.is_symlink():
+        return
+    if final.is_dir():
+        if not tmp.is_dir():
+            raise OutputError(final, "is a folder; refusing to replace it with a file")
+        if any(final.iterdir()):
+            raise OutputError(final, "is a non-empty folder; refusing to replace it")
+    elif tmp.is_dir():
+        raise OutputError(final, "is a file; refusing to replace it with a folder")
+
 
 @contextlib.contextmanager
 def atomic_path(final: str | Path) -> Iterator[Path]:
-    """Yield a temporary path in the same folder as ``final``; rename it over ``final`` on success.
+    """Yield a temporary path next to ``final``; rename it over ``final`` on success.
 
-    Works for files and folders. On an exception the temporary path is removed and ``final`` is
-    left untouched.
+    The temporary name, ``.<name>.<random>.part<suffix>``, keeps ``final``'s suffix (writers
+    that pick the format from the extension still work). On an exception the temporary path is
+    removed and ``final`` is left untouched. An existing file is replaced; a directory never is
+    (except an empty one by a directory), and a file never replaces a directory or vice versa.
+
+    Raises:
+        OutputError: ``final`` is a directory (or a file where a directory was written).
+        UnwritableOutputError: the parent folder cannot be created or written.
     """
     final = Path(final)
-    final.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{final.name}.", suffix=".tmp", dir=final.parent))
-    target = tmp / final.name
+    if final.name in ("", ".", ".."):
+        raise OutputError(final, "not a file name")
+    if final.is_dir() and not final.is_symlink() and any(final.iterdir()):
+        # checked before writing anything: a whole render is not wasted on a doomed rename
+        raise OutputError(final, "is a folder that is not empty; refusing to replace it")
+    ensure_parent(final)
+    tmp = final.parent / f".{final.name}.{uuid.uuid4().hex[:12]}.part{final.suffix}"
     try:
-        yield target
-        if final.is_dir() and not final.is_symlink():
-            shutil.rmtree(final)
-        os.replace(target, final)
+        yield tmp
+        _check_replaceable(tmp, final)
+        os.replace(tmp, final)
     finally:
-        shutil.rmtree(tmp, ignore_errors=True)
+        if tmp.exists() or tmp.is_symlink():
+            _remove(tmp)
 
 
 def write_text_atomic(path: str | Path, text: str) -> None:
-    """Write ``text`` to ``path`` atomically (temp file + rename)."""
+    """Write ``text`` (UTF-8) to ``path`` atomically (temp file + rename)."""
     with atomic_path(path) as tmp:
-        tmp.write_text(text)
+        tmp.write_text(text, encoding="utf-8")
 
 
 def write_bytes_atomic(path: str | Path, data: bytes) -> None:
     """Write ``data`` to ``path`` atomically (temp file + rename)."""
     with atomic_path(path) as tmp:
         tmp.write_bytes(data)
+
+
+# ------------------------------------------------------------------------------ locks
+class FileLock:
+    """An exclusive, non-blocking ``flock`` on ``path`` (created if missing).
+
+    The lock belongs to this object's open file; it is released by :meth:`release`, when the
+    object is garbage-collected, or by the kernel when the process ends in any way. The file
+    itself is never deleted (deleting a lock file races with processes that opened it).
+    """
+
+    def __init__(self, path: str | Path) -> None:
+        self.path = Path(path)
+        self._fd: int | None = None
+
+    @property
+    def held(self) -> bool:
+        return self._fd is not None
+
+    def acquire(self, note: str = "") -> bool:
+        """Try to take the lock; returns False when another open file holds it.
+
+        ``note`` (e.g. ``"pid 12 on host"``) is written into the lock file for humans.
+        """
+        if self._fd is not None:
+            return True
+        fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            os.close(fd)
+            return False
+        except BaseException:
+            os.close(fd)
+            raise
+        if note:
+            os.ftruncate(fd, 0)
+            os.pwrite(fd, (note + "\n").encode(), 0)
+        self._fd = fd
+        return True
+
+    def release(self) -> None:
+        if self._fd is not None:
+            fd, self._fd = self._fd, None
+            with contextlib.suppress(OSError):
+                fcntl.flock(fd, fcntl.LOCK_UN)
+            os.close(fd)
+
+    def __del__(self) -> None:
+        self.release()
+
+
+def lock_is_held(path: str | Path) -> bool | None:
+    """Whether some open file holds the ``flock`` of ``path``; ``None`` if the file is missing.
+
+    Probes with a shared lock, so two probes never disturb each other.
+    """
+    try:
+        fd = os.open(path, os.O_RDONLY)
+    except FileNotFoundError:
+        return None
+    try:
+        fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+    except BlockingIOError:
+        return True
+    else:
+        fcntl.flock(fd, fcntl.LOCK_UN)
+        return False
+    finally:
+        os.close(fd)
+
+
+def owner_note() -> str:
+    """``"pid <pid> on <host>"`` of this process (stored in lock files and run status)."""
+    return f"pid {os.getpid()} on {socket.gethostname()}"
+
+
+# ------------------------------------------------------------------------------ folders
+def _staging_prefix(name: str) -> str:
+    return f".{name}."
+
+
+def clean_stale_staging(final: str | Path) -> list[Path]:
+    """Remove staging folders of ``final`` abandoned by killed processes; returns them.
+
+    A staging folder is abandoned when its owner lock is free, or, without an owner file (a
+    process killed between creating the folder and its lock), when it is older than a minute.
+    """
+    final = Path(final)
+    removed: list[Path] = []
+    if not final.parent.is_dir():
+        return removed
+    for candidate in final.parent.glob(f"{_staging_prefix(final.name)}*.tmp"):
+        if not candidate.is_dir() or candidate.is_symlink():
+            continue
+        held = lock_is_held(candidate / _OWNER_FILE)
+        if held is None:
+            try:
+                age = time.time() - candidate.stat().st_mtime
+            except FileNotFoundError:
+                continue
+            if age < _STAGING_GRACE_S:
+                continue
+        elif held:
+            continue
+        shutil.rmtree(candidate, ignore_errors=True)
+        removed.append(candidate)
+    return removed
+
+
+@contextlib.contextmanager
+def atomic_dir(final: str | Path, *, replace: bool = False) -> Iterator[Path]:
+    """Yield a temporary folder path to fill; rename it to ``final`` on success.
+
+    The folder is built inside a hidden staging folder ``.<name>.<random>.tmp`` next to
+    ``final`` that holds an owner lock; on an exception (including Ctrl-C / SIGTERM, see
+    :class:`egs_bench.errors.Interrupted`) the staging folder is removed. Staging folders of
+    the same target left by killed processes are removed first.
+
+    Args:
+        final: the folder to create.
+        replace: replace an existing folder at ``final`` (the caller has checked that it may,
+            see :func:`egs_bench.outputs.prepare_output`). The old folder is moved into the
+            staging folder once the new one is complete, and deleted after the swap; an empty
+            existing folder is replaced without ``replace``.
+
+    Raises:
+        OutputError: ``final`` exists and may not be replaced.
+        UnwritableOutputError: the parent folder cannot be written.
+    """
+    final = Path(final)
+    if final.name in ("", ".", ".."):
+        raise OutputError(final, "not a folder name")
+    ensure_parent(final)
+    clean_stale_staging(final)
+    try:
+        staging = Path(tempfile.mkdtemp(prefix=_staging_prefix(final.name), suffix=".tmp",
+                                        dir=final.parent))
+    except OSError as exc:
+        raise UnwritableOutputError(final.parent, f"cannot write here ({exc.strerror or exc})") \
+            from None
+    owner = FileLock(staging / _OWNER_FILE)
+    try:
+        owner.acquire(owner_note())
+        target = staging / final.name
+        yield target
+        if not target.is_dir():
+            raise RuntimeError(f"atomic_dir: nothing was written to {target}")
+        old = staging / ".replaced"
+        if final.exists() or final.is_symlink():
+            if final.is_symlink() or not final.is_dir():
+                raise OutputError(final, "is a file; refusing to replace it with a folder")
+            if any(final.iterdir()) and not replace:
+                raise OutputError(final, "already exists (not replaced)")
+            os.rename(final, old)
+        try:
+            os.rename(target, final)
+        except BaseException:
+            if old.exists():
+                os.rename(old, final)
+            raise
+    finally:
+        owner.release()
+        shutil.rmtree(staging, ignore_errors=True)
 
 
 def to_plain(value: Any) -> Any:

@@ -18,7 +18,7 @@ class PlaneSource:
         import numpy as np
         from skimage import data
 
-        from egs_bench.datasets.color import srgb_to_linear
+        from egs_bench.color import srgb_to_linear
         from egs_bench.geometry import Intrinsics
 
         self.intrinsics = Intrinsics(0.9 * width, 0.9 * width, width / 2, height / 2, width,

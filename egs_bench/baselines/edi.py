@@ -335,7 +335,7 @@ def deblur_frame(
     if cfg.c is not None:
         return EdiResult(latent(cfg.c), float(cfg.c), None, len(t), time.perf_counter() - t_wall)
 
-    from egs_bench.datasets.color import luma
+    from egs_bench.color import luma
 
     edges = event_edge_map(x, y, p, height=height, width=width, fraction=cfg.edge_fraction,
                            min_events=cfg.edge_min_events)
@@ -372,9 +372,9 @@ def deblur_sequence_frame(seq, index: int, config: EdiConfig | None = None
     Returns:
         The deblurred frame (uint8 [H, W, 3], sRGB like the input) and the :class:`EdiResult`.
     """
-    from egs_bench.datasets.color import CameraResponse
+    from egs_bench.color import LdrResponse
 
-    response = CameraResponse.from_dict(seq.meta.get("crf") or {})
+    response = LdrResponse.from_dict(seq.meta.get("crf") or {})
     t0, t1 = seq.exposure(index)
     events = seq.events.window(t0 + 1, t1 + 1) if seq.has_events else None
     blurred = response.inverse(seq.rgb(index))

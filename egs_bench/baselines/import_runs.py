@@ -50,8 +50,8 @@ from typing import Any
 import numpy as np
 
 from egs_bench.errors import ConfigError, InputError
-from egs_bench.eval.image_io import read_ldr_image
 from egs_bench.geometry import pose_from_tq, read_tum
+from egs_bench.images import read_ldr_image
 from egs_bench.runs.folder import RunFolder
 
 _RENDER = re.compile(r"^(\d+)\.png$")
@@ -84,10 +84,11 @@ def import_tum_run(
         sequence_path: canonical sequence folder (ground truth and reference images), or
         groundtruth: a TUM ground-truth file (for sequences that exist only as trajectories).
         renders_dir: folder of ``<frame index>.png`` renders to copy (any zero padding).
-        overwrite: replace an existing run folder.
+        overwrite: replace an existing run folder written by egs-bench.
 
     Raises:
         InputError: unreadable estimate / ground truth, or badly named renders.
+        OutputError: ``out_dir`` exists (without ``overwrite``) or is (or contains) an input.
     """
     if sequence_path is None and groundtruth is None:
         raise InputError(out_dir, "an import needs a sequence folder or a ground-truth file")
@@ -98,7 +99,8 @@ def import_tum_run(
     run = RunFolder.create(out_dir, method=method, sequence_name=sequence_name,
                            sequence_path=sequence_path, groundtruth=groundtruth,
                            config={"imported_from": str(Path(estimate).resolve())},
-                           overwrite=overwrite)
+                           overwrite=overwrite,
+                           inputs=[p for p in (estimate, renders_dir) if p is not None])
     with run.failure_guard():
         run.write_trajectory(trajectory.timestamps, trajectory.poses)
         for index, src in renders.items():
@@ -523,7 +525,8 @@ def import_external_run(
                            sequence_name=sequence_name or seq.name, sequence_path=seq.path,
                            config=config, overwrite=overwrite,
                            estimate={"poses": est.poses_kind, "renders": renders_kind,
-                                     "scale_free": est.scale_free, "format": fmt})
+                                     "scale_free": est.scale_free, "format": fmt},
+                           inputs=[p for p in (source, export_dir, renders_dir) if p is not None])
     with run.failure_guard():
         run.write_trajectory(seq.timestamps_s[seq_frames], poses)
         if kf_idx is not None:

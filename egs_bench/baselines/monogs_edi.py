@@ -105,27 +105,31 @@ class MonoGsEdiMethod(ConfiguredSlamMethod):
 
     def run(self, sequence: Sequence, out: Path, *, preset: str = "paper", device: str = "cpu",
             seed: int = 0, max_frames: int | None = None, progress: bool = True,
-            options: dict[str, Any] | None = None) -> RunFolder:
+            overwrite: bool = False, options: dict[str, Any] | None = None) -> RunFolder:
         """Deblur each frame with EDI as the SLAM reads it, run ``monogs``; ``options``
         override SLAM configuration fields as for the built-in methods."""
         from egs_bench.fileio import write_text_atomic
-        from egs_bench.runs.folder import RunFolder
+        from egs_bench.runs.folder import RUN_FILE, RunFolder
         from egs_bench.slam.runner import run_slam
 
         config = self.config(preset).replace(**(options or {})).validate()
         view = EdiSequence(sequence, self.edi)
+        run_file = Path(out) / RUN_FILE
+        before = run_file.read_bytes() if run_file.is_file() else None
         try:
             return run_slam(view, out, method_name=self.name, config=config, preset=preset,
-                            device=device, seed=seed, max_frames=max_frames, progress=progress)
+                            device=device, seed=seed, max_frames=max_frames, progress=progress,
+                            overwrite=overwrite)
         finally:
-            if RunFolder.is_run_folder(out):
+            # only a run folder this call created (a refused --out is someone else's run)
+            if run_file.is_file() and run_file.read_bytes() != before:
                 run = RunFolder.open(out)
                 resolved = run.read_config()
                 resolved["edi"] = {**self.edi.to_dict(),
                                    "reference_time": "exposure end",
                                    "method": "EDI (Pan et al. 2019), exact double integral"}
                 run.write_config(resolved)
-                write_text_atomic(run.path / EDI_FRAMES_FILE, view.frames_csv())
+                write_text_atomic(run.artifact_path(EDI_FRAMES_FILE), view.frames_csv())
 
 
 MONOGS_EDI = MonoGsEdiMethod(

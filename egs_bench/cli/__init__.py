@@ -15,10 +15,20 @@ os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 os.environ.setdefault("NUMBA_CACHE_DIR",
                       os.path.join(os.path.expanduser("~"), ".cache", "egs_bench", "numba"))
 
+import signal
+from collections.abc import Iterator
+from contextlib import contextmanager
+
 from rich.console import Console
 
 from egs_bench.cli.app import OPTIONS, app
-from egs_bench.errors import EgsBenchError
+from egs_bench.errors import (
+    EXIT_DATA,
+    EXIT_INTERNAL,
+    EXIT_OK,
+    EgsBenchError,
+    Interrupted,
+)
 
 _COMMAND_MODULES = (
     "data_cmds",
@@ -37,30 +47,85 @@ def _register_commands() -> None:
         importlib.import_module(f"egs_bench.cli.{name}")
 
 
+def _raise_interrupted(signum: int, _frame: object) -> None:
+    raise Interrupted(signum)
+
+
+@contextmanager
+def _signals_as_interrupts() -> Iterator[None]:
+    """SIGTERM (a cluster's time limit, ``kill``) and SIGHUP (closed terminal) raise
+    :class:`Interrupted` like Ctrl-C does, so the same clean-up runs: run folders are marked
+    interrupted, staging folders of generators are removed."""
+    previous = {}
+    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+        try:
+            previous[sig] = signal.signal(sig, _raise_interrupted)
+        except ValueError:  # not the main thread (e.g. called from a test runner's thread)
+            pass
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+
+
 def main(argv: list[str] | None = None) -> int:
-    """Entry point of the console script; returns the process exit code."""
+    """Entry point of the console script; returns the process exit code.
+
+    Exit codes: 0 success, 2 usage error (bad option or value, refused output path),
+    3 data error (a file is missing, malformed or cannot be written), 70 internal error (a bug;
+    ``--debug`` shows the traceback), 130 / 143 / 129 interrupted by SIGINT / SIGTERM / SIGHUP.
+    """
     _register_commands()
     err = Console(stderr=True, highlight=False, soft_wrap=True)
     try:
-        app(args=argv, standalone_mode=True)
+        with _signals_as_interrupts():
+            app(args=argv, standalone_mode=True)
     except SystemExit as exc:
+        # typer reports usage errors itself (exit 2) and turns Ctrl-C into exit 130; a signal
+        # we raised as Interrupted is found in the exception chain
+        interrupted = _find_interrupted(exc)
+        if interrupted is not None:
+            err.print(str(interrupted))
+            return interrupted.exit_code
         return int(exc.code or 0) if not isinstance(exc.code, str) else 1
     except EgsBenchError as exc:
         if OPTIONS.debug:
             raise
         err.print(f"[bold red]error:[/] {exc}", markup=True)
-        return 2
-    except KeyboardInterrupt:
-        err.print("interrupted")
-        return 130
+        return exc.exit_code
+    except KeyboardInterrupt as exc:
+        err.print(str(exc) if isinstance(exc, Interrupted) else "interrupted")
+        return exc.exit_code if isinstance(exc, Interrupted) else 130
+    except OSError as exc:
+        # a file-system failure (disk full, permission, vanished file) outside our own checks
+        if OPTIONS.debug or exc.filename is None:
+            if OPTIONS.debug:
+                raise
+            return _internal(err, exc)
+        err.print(f"[bold red]error:[/] {exc.filename}: {exc.strerror or exc}", markup=True)
+        return EXIT_DATA
     except Exception as exc:  # noqa: BLE001 (last-resort one-line report; --debug shows all)
         if OPTIONS.debug:
             raise
-        err.print(f"[bold red]internal error:[/] {type(exc).__name__}: {exc} "
-                  "(run with --debug for the traceback)", markup=True)
-        return 1
-    return 0
+        return _internal(err, exc)
+    return EXIT_OK
 
+
+def _find_interrupted(exc: BaseException | None) -> Interrupted | None:
+    seen = 0
+    while exc is not None and seen < 10:
+        if isinstance(exc, Interrupted):
+            return exc
+        exc = exc.__cause__ or exc.__context__
+        seen += 1
+    return None
+
+
+def _internal(err: Console, exc: BaseException) -> int:
+    err.print(f"[bold red]internal error:[/] {type(exc).__name__}: {exc} "
+              "(a bug in egs-bench; run with --debug for the traceback)", markup=True)
+    return EXIT_INTERNAL
 
 
 def run() -> None:

@@ -38,15 +38,19 @@ def show(
     seq: Path = typer.Argument(..., help="Sequence folder."),
     frame: int = typer.Option(0, "--frame", "-f", help="Frame index to show."),
     out: Path = typer.Option(..., "--out", "-o", help="PNG file to write."),
+    overwrite: bool = typer.Option(False, "--overwrite",
+                                   help="Replace an existing PNG at --out."),
 ) -> None:
     """Write a PNG panel of one frame: observed, sharp GT, depth and the exposure's event map."""
     from egs_bench.datasets.inspect import save_frame_panel
     from egs_bench.datasets.sequence import Sequence
     from egs_bench.errors import ConfigError
+    from egs_bench.outputs import prepare_output
 
     sequence = Sequence.open(seq)
     if not 0 <= frame < len(sequence):
         raise ConfigError(f"--frame {frame} out of range: {seq} has {len(sequence)} frames")
+    prepare_output(out, "png", overwrite=overwrite, inputs=[seq])
     save_frame_panel(sequence, frame, out)
     Console().print(f"wrote {out}")
 

@@ -167,11 +167,17 @@ def leaderboard_cmd(
                                  help="Do not evaluate runs that lack metrics.json."),
     output: Path | None = typer.Option(None, "--output", "-o",
                                        help="Write the table to this file instead of stdout."),
+    overwrite: bool = typer.Option(False, "--overwrite",
+                                   help="Replace an existing text file at --output."),
 ) -> None:
     """Leaderboard table of all runs under RUNS_ROOT (best bold, second underlined)."""
     from egs_bench.eval.leaderboard import leaderboard
     from egs_bench.fileio import write_text_atomic
+    from egs_bench.outputs import prepare_output
 
+    if output is not None:
+        prepare_output(output, "text", overwrite=overwrite, inputs=[runs_root],
+                       option="--output")
     text = leaderboard(runs_root, fmt=fmt, by=by, protocol=protocol,
                        metrics=[m.strip() for m in metrics.split(",") if m.strip()],
                        evaluate_missing=not no_eval)

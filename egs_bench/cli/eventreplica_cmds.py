@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any, Literal
 
 import typer
 from rich.console import Console
@@ -54,8 +55,10 @@ def make_eventreplica_cmd(
     width: int = typer.Option(448, "--width", help="Output width after the centre crop (px)."),
     height: int = typer.Option(256, "--height", help="Output height after the centre crop (px)."),
     resize: str = typer.Option(
-        "459x260", "--resize",
-        help="Resize to WxH before the centre crop, or 'none' to crop only.",
+        "auto", "--resize",
+        help="Resize to WxH before the centre crop, 'none' to crop only, or 'auto': the "
+             "paper's 459x260 for Replica's 1200x680 frames, otherwise the smallest size with "
+             "the input's aspect ratio that covers the crop.",
     ),
     first: int = typer.Option(0, "--first", min=0, help="First original frame to use."),
     max_frames: int | None = typer.Option(
@@ -79,7 +82,7 @@ def make_eventreplica_cmd(
     progress: bool = typer.Option(True, "--progress/--no-progress", help="Show progress bars."),
 ) -> None:
     """Make EventReplica-style sequences: resize + crop, temporal upsampling, events, blur."""
-    from egs_bench.datasets.color import CameraResponse
+    from egs_bench.color import LdrResponse
     from egs_bench.datasets.esim import EventSimConfig
     from egs_bench.datasets.eventreplica import make_eventreplica, make_eventreplica_scenes
     from egs_bench.errors import ConfigError
@@ -90,28 +93,33 @@ def make_eventreplica_cmd(
         raise ConfigError("--replica-root needs at least one --scene NAME")
     if input is not None and scene:
         raise ConfigError("--scene only works with --replica-root")
-    kwargs = dict(
+    kwargs: dict[str, Any] = dict(
         stride=stride, fps=fps, exposure_ms=exposure_ms, upsample=upsample,
         interpolator=interpolator, width=width, height=height, resize=_parse_size(resize),
         first=first, max_frames=max_frames, cam_params=cam_params,
         sim=EventSimConfig(pos_threshold=threshold, neg_threshold=threshold, eps=eps, seed=seed),
-        response=CameraResponse(gain=gain), progress=progress, overwrite=overwrite,
+        response=LdrResponse(gain=gain), progress=progress, overwrite=overwrite,
     )
     if input is not None:
         outputs = [make_eventreplica(input, out, **kwargs)]
     else:
+        assert replica_root is not None  # exactly one of --input / --replica-root, checked above
         outputs = make_eventreplica_scenes(replica_root, scene or [], out, **kwargs)
     for path in outputs:
         Console().print(f"wrote {path}")
 
 
-def _parse_size(text: str) -> tuple[int, int] | None:
+def _parse_size(text: str) -> tuple[int, int] | Literal["auto"] | None:
     from egs_bench.errors import ConfigError
 
-    if text.strip().lower() == "none":
-        return None
+    word = text.strip().lower()
+    if word in ("none", "auto"):
+        return None if word == "none" else "auto"
     try:
-        w, h = (int(v) for v in text.lower().split("x"))
+        w, h = (int(v) for v in word.split("x"))
     except ValueError:
-        raise ConfigError(f"--resize must look like 459x260 or 'none', not {text!r}") from None
+        raise ConfigError(f"--resize must look like 459x260, 'auto' or 'none', not {text!r}") \
+            from None
+    if w <= 0 or h <= 0:
+        raise ConfigError(f"--resize must be a positive size, not {text!r}")
     return w, h

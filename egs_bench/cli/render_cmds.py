@@ -11,6 +11,8 @@ import typer
 from egs_bench.cli.app import app
 from egs_bench.errors import ConfigError
 
+BACKENDS = ("auto", "numba", "gsplat")
+
 
 def _parse_pose(text: str) -> np.ndarray:
     from egs_bench.geometry import pose_from_tq
@@ -18,7 +20,13 @@ def _parse_pose(text: str) -> np.ndarray:
     vals = text.replace(",", " ").split()
     if len(vals) != 7:
         raise ConfigError(f"--pose needs 7 numbers 'tx ty tz qx qy qz qw', got {text!r}")
-    v = np.array([float(x) for x in vals])
+    try:
+        v = np.array([float(x) for x in vals])
+    except ValueError:
+        raise ConfigError(f"--pose needs 7 numbers 'tx ty tz qx qy qz qw', got {text!r}") \
+            from None
+    if not np.isfinite(v).all() or np.linalg.norm(v[3:]) < 1e-9:
+        raise ConfigError(f"--pose needs finite numbers and a non-zero quaternion, got {text!r}")
     return pose_from_tq(v[:3], v[3:])
 
 
@@ -42,32 +50,36 @@ def render_map(
     colors: str = typer.Option("auto", "--colors",
                                help="Without an appearance file: auto (from the file), linear "
                                     "(sRGB-encode) or display (as stored)."),
-    width: int = typer.Option(None, help="Image width in pixels [default: the run's camera, "
-                                         "else 640]."),
-    height: int = typer.Option(None, help="Image height in pixels [default: the run's "
-                                          "camera, else 480]."),
-    fov: float = typer.Option(None, help="Horizontal field of view in degrees, square pixels "
-                                         "[default: the run's camera, else 60]."),
+    width: int = typer.Option(None, min=1, help="Image width in pixels [default: the run's "
+                                                "camera, else 640]."),
+    height: int = typer.Option(None, min=1, help="Image height in pixels [default: the run's "
+                                                 "camera, else 480]."),
+    fov: float = typer.Option(None, min=1.0, max=170.0,
+                              help="Horizontal field of view in degrees, square pixels "
+                                   "[default: the run's camera, else 60]."),
     backend: str = typer.Option("auto", help="Rasteriser backend: auto, numba, gsplat."),
+    overwrite: bool = typer.Option(False, "--overwrite",
+                                   help="Replace an existing PNG at --out."),
 ) -> None:
     """Render a saved Gaussian map from one camera into a PNG (a run's map as the run did)."""
-    from egs_bench.fileio import atomic_path
     from egs_bench.geometry import Intrinsics
+    from egs_bench.images import write_ldr_image
+    from egs_bench.outputs import prepare_output
     from egs_bench.slam.map_export import open_map, render_map_view
 
+    if backend not in BACKENDS:
+        raise ConfigError(f"--backend must be one of {', '.join(BACKENDS)}, not {backend!r}")
+    pose_wc = _parse_pose(pose) if pose else None
+    prepare_output(out, "png", overwrite=overwrite, inputs=[source, appearance])
     src = open_map(source, appearance)
     camera = None
     if src.appearance is None or any(v is not None for v in (width, height, fov)):
         w, h = width or 640, height or 480
         f = 0.5 * w / np.tan(np.radians(fov or 60.0) / 2)
         camera = Intrinsics(f, f, w / 2, h / 2, w, h)
-    img, what = render_map_view(src, frame=frame, pose=_parse_pose(pose) if pose else None,
-                                camera=camera, exposure=exposure, colors=colors,
-                                backend=backend)
-    import imageio.v3 as iio
-
-    with atomic_path(out) as tmp:
-        iio.imwrite(tmp, img, extension=".png")
+    img, what = render_map_view(src, frame=frame, pose=pose_wc, camera=camera,
+                                exposure=exposure, colors=colors, backend=backend)
+    write_ldr_image(out, img)
     for note in src.notes:
         typer.echo(f"note: {note}")
     typer.echo(f"rendered {len(src.gmap)} Gaussians ({what}) -> {out}")
@@ -84,8 +96,10 @@ def export_map(
 ) -> None:
     """Export a run's map as a standard display-space 3DGS .ply (INRIA loader, gsplat,
     viewers): colours through the run's CRF, SH degree 3 with zero f_rest_*."""
+    from egs_bench.outputs import prepare_output
     from egs_bench.slam.map_export import export_display_ply, open_map
 
+    prepare_output(out, "ply", overwrite=overwrite, inputs=[source, appearance])
     src = open_map(source, appearance)
     export_display_ply(src, out, overwrite=overwrite)
     typer.echo(f"exported {len(src.gmap)} Gaussians (display colours, SH degree 3) -> {out}")
@@ -96,10 +110,16 @@ def render_demo_cmd(
     out: Path = typer.Option(Path("render_demo.png"), "--out", "-o",
                              help="Output PNG: input view | render | depth | novel view."),
     ply: Path = typer.Option(None, "--ply", help="Also save the demo Gaussian map here."),
+    overwrite: bool = typer.Option(False, "--overwrite",
+                                   help="Replace an existing PNG at --out (and PLY at --ply)."),
 ) -> None:
     """Build a Gaussian map from a synthetic RGB-D view and render it (a visual self-check)."""
+    from egs_bench.outputs import prepare_output
     from egs_bench.render.demo import render_demo
 
+    prepare_output(out, "png", overwrite=overwrite)
+    if ply:
+        prepare_output(ply, "ply", overwrite=overwrite, option="--ply")
     gmap = render_demo(out)
     if ply:
         gmap.save_ply(ply)

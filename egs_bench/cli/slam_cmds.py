@@ -26,30 +26,37 @@ def run_cmd(
     device: str = typer.Option("auto", "--device",
                                help="auto (CUDA when present), cpu, cuda or cuda:N."),
     seed: int = typer.Option(0, "--seed", help="Random seed (CPU runs are deterministic)."),
-    max_frames: int | None = typer.Option(None, "--max-frames",
-                                          help="Process only the first N frames."),
+    max_frames: int | None = typer.Option(None, "--max-frames", min=1,
+                                          help="Process only the first N frames (N >= 1)."),
     evaluate: bool = typer.Option(False, "--eval",
                                   help="Evaluate the run afterwards (writes metrics.json)."),
     quiet: bool = typer.Option(False, "--quiet", help="No progress bar."),
+    overwrite: bool = typer.Option(False, "--overwrite",
+                                   help="Replace an existing run folder at --out (only one "
+                                        "written by egs-bench; other files in it are kept)."),
     options: list[str] = typer.Option([], "--set",
                                       help="Override one configuration field, KEY=VALUE "
                                            "(repeatable; built-in methods only), e.g. "
                                            "--set lambda_d=0.05."),
 ) -> None:
     """Run a SLAM method on a sequence and write its run folder."""
+    from egs_bench.datasets.registry import load_sequence
     from egs_bench.errors import ConfigError
-    from egs_bench.runs.registry import get_method
+    from egs_bench.runs.registry import get_method, supports_overwrite
     from egs_bench.slam.config import parse_overrides
     from egs_bench.slam.methods import ConfiguredSlamMethod
-    from egs_bench.slam.runner import resolve_sequence
 
     m = get_method(method)
     overrides = parse_overrides(options)
     if overrides and not isinstance(m, ConfiguredSlamMethod):
         raise ConfigError(f"--set applies to built-in methods; {m.name!r} is a user method")
-    sequence = resolve_sequence(seq)
+    if overwrite and not supports_overwrite(m):
+        raise ConfigError(f"method {m.name!r} does not support --overwrite; choose a new --out")
+    sequence = load_sequence(seq)
     out_dir = out or Path("runs") / m.name.replace(":", "_") / sequence.name
-    extra = {"options": overrides} if overrides else {}
+    extra: dict = {"options": overrides} if overrides else {}
+    if overwrite:
+        extra["overwrite"] = True
     run = m.run(sequence, out_dir, preset=preset, device=device, seed=seed,
                 max_frames=max_frames, progress=not quiet, **extra)
     typer.echo(f"run folder: {run.path}")

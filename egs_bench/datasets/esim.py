@@ -1,4 +1,4 @@
-"""ESIM-style event simulation from a stream of log-brightness samples (DESIGN §4).
+"""ESIM-style event simulation from a stream of log-brightness samples (docs/design.md §4).
 
 Model (per pixel, following ESIM, Rebecq et al. 2018):
 
@@ -32,10 +32,11 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
-from egs_bench.datasets.color import luma
+from egs_bench.color import luma
 from egs_bench.datasets.esim_kernels import (
     NEVER_FIRED_US,
     counting_sort_by_time,
@@ -309,7 +310,7 @@ def simulate(
     first = True
     images = iter(log_images)
     times = iter(times_us)
-    sentinel = object()
+    sentinel: Any = object()
     while True:
         image = next(images, sentinel)
         t_us = next(times, sentinel)

@@ -8,6 +8,7 @@ from typing import Any
 import cv2
 import numpy as np
 
+from egs_bench.color import to_uint8
 from egs_bench.datasets.pipeline import LatentFrame, max_flow_px
 from egs_bench.datasets.sequence import Sequence
 from egs_bench.fileio import atomic_path
@@ -53,8 +54,8 @@ def sequence_summary(seq: Sequence, max_frames_for_blur: int = 20) -> dict[str, 
     duration_s = (seq.t_end_us[-1] - seq.t_start_us[0]) * 1e-6
     picks = np.unique(np.linspace(0, n - 1, min(n, max_frames_for_blur)).astype(int))
     extents = [e for e in (blur_extent_px(seq, int(i)) for i in picks) if e is not None]
-    ratios = [sharpness_ratio(seq.rgb(int(i)), seq.sharp(int(i))) for i in picks] \
-        if seq.has_sharp else []
+    sharp = {int(i): seq.sharp(int(i)) for i in picks} if seq.has_sharp else {}
+    ratios = [sharpness_ratio(seq.rgb(i), img) for i, img in sharp.items() if img is not None]
     summary: dict[str, Any] = {
         "name": seq.name,
         "path": str(seq.path),
@@ -95,7 +96,7 @@ def event_map_image(counts: np.ndarray) -> np.ndarray:
     img[pos, 2] -= level[pos]
     img[neg, 0] -= level[neg]
     img[neg, 1] -= level[neg]
-    return (img * 255).round().astype(np.uint8)
+    return to_uint8(img)
 
 
 def save_frame_panel(seq: Sequence, i: int, out: str | Path) -> Path:
@@ -135,7 +136,6 @@ def save_frame_panel(seq: Sequence, i: int, out: str | Path) -> Path:
     fig.suptitle(f"{seq.name}")
     fig.tight_layout()
     with atomic_path(out) as tmp:
-        fig.savefig(tmp.with_suffix(".png"), dpi=100)
-        tmp.with_suffix(".png").rename(tmp)
+        fig.savefig(tmp, format="png", dpi=100)
     plt.close(fig)
     return out

@@ -25,7 +25,7 @@ is off by default because on fine textures it multiplies the number of renders s
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any, Protocol
@@ -34,12 +34,13 @@ import numpy as np
 from tqdm import tqdm
 
 import egs_bench
-from egs_bench.datasets.color import CameraResponse
+from egs_bench.color import LdrResponse
 from egs_bench.datasets.esim import EventSimConfig, EventSimulator, log_luma
 from egs_bench.datasets.sequence import SequenceWriter
 from egs_bench.errors import ConfigError
-from egs_bench.fileio import atomic_path
+from egs_bench.fileio import atomic_dir
 from egs_bench.geometry import Intrinsics, invert_pose
+from egs_bench.outputs import prepare_output
 
 DEFAULT_DEPTH_SCALE = 5000.0  # uint16 PNG units per metre (TUM convention): 0.2 mm, <= 13.1 m
 
@@ -188,11 +189,12 @@ def generate_sequence(
     *,
     meta_extra: dict[str, Any] | None = None,
     sim: EventSimConfig | None = None,
-    response: CameraResponse | None = None,
+    response: LdrResponse | None = None,
     sampling: SamplingConfig | None = None,
     depth_scale: float = DEFAULT_DEPTH_SCALE,
     progress: bool = True,
     overwrite: bool = False,
+    inputs: Sequence[str | Path | None] = (),
 ) -> Path:
     """Render, simulate and write a canonical sequence folder at ``out`` (atomically).
 
@@ -206,31 +208,37 @@ def generate_sequence(
         sampling: temporal sampling rule.
         depth_scale: depth PNG units per metre.
         progress: show a progress bar.
-        overwrite: replace an existing ``out``.
+        overwrite: replace an existing ``out`` (only a sequence folder that egs-bench wrote
+            and that holds nothing else, see :func:`egs_bench.outputs.prepare_output`).
+        inputs: files or folders the generator reads; ``out`` may not be or contain one.
 
     Returns:
         The sequence folder.
+
+    Raises:
+        OutputError: ``out`` exists and may not be replaced.
     """
     out = Path(out)
     sim = sim or EventSimConfig()
-    response = response or CameraResponse()
+    response = response or LdrResponse()
     sampling = sampling or SamplingConfig()
     t_start = np.asarray(t_start_us, dtype=np.int64)
     t_end = np.asarray(t_end_us, dtype=np.int64)
     if len(t_start) == 0 or len(t_start) != len(t_end):
-        raise ConfigError("need the same non-zero number of exposure starts and ends")
+        raise ValueError("need the same non-zero number of exposure starts and ends")
     if (t_end <= t_start).any() or (t_start[1:] < t_end[:-1]).any():
-        raise ConfigError("exposure windows must be non-empty and must not overlap")
-    if out.exists() and not overwrite:
-        raise ConfigError(f"{out} already exists (pass overwrite to replace it)")
+        raise ValueError("exposure windows must be non-empty and must not overlap")
+    prepare_output(out, "sequence", overwrite=overwrite, inputs=inputs)
     cam = source.intrinsics
     boundaries = np.unique(np.concatenate([t_start, t_end]))
     meta = _base_meta(cam, sim, response, sampling, t_start, t_end, depth_scale)
     meta.update(meta_extra or {})
     meta["name"] = meta.get("name") or out.name
 
-    with atomic_path(out) as tmp:
+    with atomic_dir(out, replace=overwrite) as tmp:
         writer = SequenceWriter(tmp, meta, t_offset_us=int(boundaries[0]))
+        events = writer.events
+        assert events is not None  # t_offset_us given: the writer has an event file
         sampler = _Sampler(source, sampling, sim.eps)
         simulator = EventSimulator(sim, cam.height, cam.width)
         prev = sampler.render(int(boundaries[0]))
@@ -242,7 +250,7 @@ def generate_sequence(
                    disable=not progress)
         for t_b in boundaries[1:]:
             for cur in sampler.between(prev, int(t_b)):
-                writer.events.append(simulator.step(cur[2], cur[0]))
+                events.append(simulator.step(cur[2], cur[0]))
                 if frame < len(t_start) and t_start[frame] <= prev[0] and cur[0] <= t_end[frame]:
                     _blur_step(acc, prev[1].rgb, cur[1].rgb, cur[0] - prev[0])
                 dense_t.append(cur[0])
@@ -265,7 +273,7 @@ def generate_sequence(
     return out
 
 
-def _base_meta(cam: Intrinsics, sim: EventSimConfig, response: CameraResponse,
+def _base_meta(cam: Intrinsics, sim: EventSimConfig, response: LdrResponse,
                sampling: SamplingConfig, t_start: np.ndarray, t_end: np.ndarray,
                depth_scale: float) -> dict[str, Any]:
     period = float(np.median(np.diff(t_end))) if len(t_end) > 1 else float(t_end[0] - t_start[0])

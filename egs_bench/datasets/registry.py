@@ -10,8 +10,12 @@ from __future__ import annotations
 import os
 from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from egs_bench.errors import InputError
+
+if TYPE_CHECKING:
+    from egs_bench.datasets.sequence import Sequence
 
 
 @dataclass(frozen=True)
@@ -117,3 +121,10 @@ def resolve_sequence(name_or_path: str | Path, root: Path | None = None, generat
     settings = asdict(spec)
     settings.pop("description")
     return make_synthetic(out=named, progress=progress, **settings)
+
+
+def load_sequence(name_or_path: str | Path, progress: bool = True) -> Sequence:
+    """Open the sequence :func:`resolve_sequence` finds (generating built-in names on demand)."""
+    from egs_bench.datasets.sequence import Sequence
+
+    return Sequence.open(resolve_sequence(name_or_path, progress=progress))

@@ -12,7 +12,7 @@ Defaults when no ``cam_params.json`` exists: ``1200 x 680``, ``fx = fy = 600``,
 
 **Pixel convention.** Replica/NICE-SLAM intrinsics put the centre of pixel ``u`` at the integer
 ``u`` (the image centre of a 1200-wide image is ``599.5``). egs-bench uses gsplat's convention
-where that centre is at ``u + 0.5`` (DESIGN §2). The reader therefore returns
+where that centre is at ``u + 0.5`` (docs/design.md §2). The reader therefore returns
 ``cx_ours = cx + 0.5`` and ``cy_ours = cy + 0.5`` (``600, 340`` by default); the writer
 subtracts the 0.5 again, so a read/write round trip is exact.
 
@@ -33,13 +33,18 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-import cv2
 import numpy as np
-from PIL import Image
 
 from egs_bench.errors import InputError
-from egs_bench.fileio import atomic_path, write_text_atomic
+from egs_bench.fileio import atomic_dir, read_text, write_text_atomic
 from egs_bench.geometry import Intrinsics
+from egs_bench.images import (
+    image_header,
+    read_depth_png,
+    read_ldr_image,
+    write_depth_png,
+    write_ldr_image,
+)
 
 REPLICA_DEPTH_SCALE = 6553.5
 # NICE-SLAM configs/Replica/replica.yaml, in Replica's own (pixel centre at integer) convention.
@@ -87,23 +92,14 @@ class ReplicaScene:
     def rgb(self, index: int) -> np.ndarray:
         """Colour frame ``index`` as uint8 sRGB [H, W, 3] (RGB order)."""
         path = self.rgb_paths[index]
-        img = cv2.imread(str(path), cv2.IMREAD_COLOR)
-        if img is None:
-            raise InputError(path, "cannot decode the colour image")
+        img = read_ldr_image(path)
         self._check_size(path, img)
-        return np.ascontiguousarray(img[:, :, ::-1])
+        return img
 
     def depth(self, index: int) -> np.ndarray:
         """Depth frame ``index`` in metres, float32 [H, W] (0 = invalid)."""
         path = self.depth_paths[index]
-        raw = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
-        if raw is None:
-            raise InputError(path, "cannot decode the depth image")
-        if raw.ndim != 2 or raw.dtype != np.uint16:
-            raise InputError(
-                path, f"depth must be a single-channel 16-bit PNG, got dtype {raw.dtype} "
-                f"with shape {raw.shape}"
-            )
+        raw = read_depth_png(path)
         self._check_size(path, raw)
         return (raw.astype(np.float32) / np.float32(self.depth_scale)).astype(np.float32)
 
@@ -182,7 +178,7 @@ def read_replica_trajectory(path: str | Path) -> np.ndarray:
     if not path.is_file():
         raise InputError(path, "missing trajectory file (16 numbers per line, camera-to-world)")
     poses = []
-    for line_no, line in enumerate(path.read_text().splitlines(), start=1):
+    for line_no, line in enumerate(read_text(path).splitlines(), start=1):
         text = line.strip()
         if not text or text.startswith("#"):
             continue
@@ -223,6 +219,7 @@ def export_replica_layout(
     depth_scale: float = REPLICA_DEPTH_SCALE,
     image_format: str = "jpg",
     jpeg_quality: int = 95,
+    overwrite: bool = False,
     jpeg_chroma_444: bool = False,
 ) -> Path:
     """Write an RGB-D + pose sequence in the NICE-SLAM Replica layout (atomically).
@@ -231,13 +228,15 @@ def export_replica_layout(
         rgb_list: N uint8 sRGB images [H, W, 3] (RGB order).
         depth_list: N depth maps [H, W] in metres (0 = invalid; NaN not allowed).
         poses: N camera-to-world poses [4, 4].
-        out_dir: the scene folder to create (replaced if it exists).
+        out_dir: the scene folder to create; an existing one is replaced only with
+            ``overwrite``.
         intrinsics: egs-bench-convention intrinsics; if given, a ``cam_params.json`` is written
             (converted to Replica's convention, ``cx - 0.5``). If None, the images must match
             the Replica defaults that a reader will assume.
         depth_scale: PNG value per metre (Replica: 6553.5, so depths up to 10 m).
         image_format: ``"jpg"`` (as NICE-SLAM) or ``"png"`` (lossless, for exact tests).
         jpeg_quality: JPEG quality 1..100.
+        overwrite: replace an existing ``out_dir``.
         jpeg_chroma_444: keep full-resolution colour (no 4:2:0 chroma subsampling).
 
     Returns:
@@ -250,7 +249,7 @@ def export_replica_layout(
         raise ValueError(f"{n} colour, {len(depth_list)} depth and {len(poses)} pose entries")
     if image_format not in ("jpg", "png"):
         raise ValueError("image_format must be 'jpg' or 'png'")
-    with atomic_path(out_dir) as tmp:
+    with atomic_dir(out_dir, replace=overwrite) as tmp:
         results = tmp / "results"
         results.mkdir(parents=True)
         for i, (rgb, depth) in enumerate(zip(rgb_list, depth_list, strict=True)):
@@ -263,13 +262,9 @@ def export_replica_layout(
             raw = np.round(depth * depth_scale)
             if raw.max() > 65535:
                 raise ValueError(f"frame {i}: depth {depth.max():.3f} m overflows 16 bits")
-            params = [cv2.IMWRITE_JPEG_QUALITY, int(jpeg_quality)] if image_format == "jpg" else []
-            if image_format == "jpg" and jpeg_chroma_444:
-                params += [cv2.IMWRITE_JPEG_SAMPLING_FACTOR, cv2.IMWRITE_JPEG_SAMPLING_FACTOR_444]
-            if not cv2.imwrite(str(results / f"frame{i:06d}.{image_format}"), rgb[:, :, ::-1],
-                               params):
-                raise OSError(f"could not write frame {i}")
-            cv2.imwrite(str(results / f"depth{i:06d}.png"), raw.astype(np.uint16))
+            write_ldr_image(results / f"frame{i:06d}.{image_format}", rgb, jpeg_quality,
+                            jpeg_chroma_444)
+            write_depth_png(results / f"depth{i:06d}.png", raw.astype(np.uint16))
         lines = [" ".join(f"{v:.17g}" for v in pose.reshape(-1)) for pose in poses]
         (tmp / "traj.txt").write_text("\n".join(lines) + "\n")
         if intrinsics is not None:
@@ -292,8 +287,9 @@ def _read_camera(
     root: Path, explicit: str | Path | None
 ) -> tuple[Intrinsics, float, Path | None]:
     """Intrinsics (egs-bench convention), depth scale and the file they came from."""
+    path: Path | None
     if explicit is not None:
-        path: Path | None = Path(explicit)
+        path = Path(explicit)
         if not path.is_file():
             raise InputError(path, "camera parameter file does not exist")
     else:
@@ -354,11 +350,8 @@ def _check_headers(scene: ReplicaScene) -> None:
     want = (scene.intrinsics.width, scene.intrinsics.height)
     for kind, paths in (("colour", scene.rgb_paths), ("depth", scene.depth_paths)):
         for path in paths:
-            try:
-                with Image.open(path) as im:
-                    size, mode = im.size, im.mode
-            except (OSError, Image.UnidentifiedImageError) as exc:
-                raise InputError(path, f"unreadable {kind} image ({exc})") from None
+            width, height, mode = image_header(path)
+            size = (width, height)
             if size != want:
                 raise InputError(
                     path, f"{kind} image is {size[0]}x{size[1]}, expected {want[0]}x{want[1]}"

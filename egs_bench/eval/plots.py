@@ -47,7 +47,7 @@ def plot_trajectory_top_view(ate: AteResult, path: str | Path, title: str = "") 
     pts = ate.est_positions[:, [a, b]]
     segments = np.stack([pts[:-1], pts[1:]], axis=1)
     err_cm = 100 * ate.errors
-    lines = LineCollection(segments, cmap="viridis", lw=2, label="estimate (aligned)")
+    lines = LineCollection(list(segments), cmap="viridis", lw=2, label="estimate (aligned)")
     lines.set_array(0.5 * (err_cm[:-1] + err_cm[1:]))
     ax.add_collection(lines)
     ax.autoscale()
@@ -123,33 +123,36 @@ def plot_run(run_dir: str | Path, protocol: str = "egs",
     """
     from egs_bench.eval.evaluate import compute_run_ate, open_sequence
     from egs_bench.eval.protocols import get_protocol
-    from egs_bench.runs.folder import RunFolder
+    from egs_bench.runs.folder import PLOT_FILES, RunFolder
 
     proto = get_protocol(protocol)
     run = RunFolder.open(run_dir)
     status = run.read_status()
-    if status.state != "done":
+    if status.state != "done" and not (status.state == "interrupted"
+                                       and run.trajectory_path.is_file()):
         raise InputError(run.path, f"run is {status.state}"
                                    + (f" ({status.reason})" if status.reason else "")
                                    + "; nothing to plot")
     seq = open_sequence(run.sequence_path) if run.sequence_path is not None else None
     ate = compute_run_ate(run, proto, seq)
     label = f"{run.method} on {run.sequence_name}"
-    out = [
-        plot_trajectory_top_view(ate, run.plots_dir / "trajectory_top.png",
-                                 f"{label}: ATE RMSE {100 * ate.rmse:.2f} cm"),
-        plot_ate_over_time(ate, run.plots_dir / "ate_over_time.png", f"{label}: ATE over time"),
-    ]
+    top, over_time, grid = (run.plots_dir / name for name in PLOT_FILES)
+    # every input is read before the first plot is written: bad input leaves no partial set
+    rows: list[tuple[int, list[np.ndarray | None]]] = []
     rendered = run.render_indices()
     if seq is not None and rendered:
         if frames is None:
             picks = np.linspace(0, len(rendered) - 1, min(3, len(rendered))).round().astype(int)
             frames = [rendered[i] for i in sorted(set(picks.tolist()))]
-        rows = []
         for f in frames:
             if not 0 <= f < len(seq):
                 raise InputError(seq.path, f"frame {f} outside the sequence (0..{len(seq) - 1})")
             rows.append((f, [seq.rgb(f), run.read_render(f), seq.sharp(f)]))
+    out = [
+        plot_trajectory_top_view(ate, top, f"{label}: ATE RMSE {100 * ate.rmse:.2f} cm"),
+        plot_ate_over_time(ate, over_time, f"{label}: ATE over time"),
+    ]
+    if rows:
         out.append(plot_qualitative_grid(rows, ["observed (blurred)", run.method, "sharp GT"],
-                                         run.plots_dir / "qualitative.png", label))
+                                         grid, label))
     return out

@@ -1,8 +1,8 @@
 """Poses (SE(3)/SO(3)), trajectories (TUM files) and pinhole intrinsics.
 
-Conventions (DESIGN §2): poses are 4x4 float64 matrices, ``T_wc`` camera-to-world, OpenCV
-camera axes; quaternions in TUM files are ``qx qy qz qw``; time is int64 microseconds inside
-the toolkit and seconds in TUM files; pixel ``(u, v)`` has its centre at ``u + 0.5``.
+Conventions (docs/design.md §2): poses are 4x4 float64 matrices, ``T_wc`` camera-to-world,
+OpenCV camera axes; quaternions in TUM files are ``qx qy qz qw``; time is int64 microseconds
+inside the toolkit and seconds in TUM files; pixel ``(u, v)`` has its centre at ``u + 0.5``.
 """
 
 from egs_bench.geometry.camera import Intrinsics

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from egs_bench.errors import InputError
-from egs_bench.fileio import write_text_atomic
+from egs_bench.fileio import read_text, write_text_atomic
 from egs_bench.geometry.se3 import pose_from_tq, pose_to_tq
 
 
@@ -39,14 +39,13 @@ def read_tum(path: str | Path, min_poses: int = 1) -> Trajectory:
     Lines starting with ``#`` and blank lines are ignored; commas are accepted as separators.
 
     Raises:
-        InputError: the file is missing, a line does not hold 8 numbers, a value is not finite,
+        InputError: the file is missing or not text, a line does not hold 8 numbers, a value is
+            not finite,
             a quaternion has zero norm, timestamps decrease, or fewer than ``min_poses`` poses.
     """
     path = Path(path)
-    if not path.is_file():
-        raise InputError(path, "trajectory file not found")
     rows: list[list[float]] = []
-    for lineno, line in enumerate(path.read_text().splitlines(), start=1):
+    for lineno, line in enumerate(read_text(path, "trajectory file").splitlines(), start=1):
         line = line.strip()
         if not line or line.startswith("#"):
             continue

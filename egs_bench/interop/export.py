@@ -45,7 +45,7 @@ consuming loader's parsing logic):
 
 Output safety: an existing ``OUT`` is only replaced with ``overwrite=True`` and only if it is
 an earlier egs-bench export (it has ``egs_export.yaml``); the export is built under a temporary
-name and renamed at the end (:func:`egs_bench.fileio.atomic_path`).
+name and renamed at the end (:func:`egs_bench.fileio.atomic_dir`).
 """
 
 from __future__ import annotations
@@ -60,8 +60,9 @@ import numpy as np
 import yaml
 
 from egs_bench.errors import ConfigError, InputError
-from egs_bench.fileio import atomic_path, to_plain
+from egs_bench.fileio import atomic_dir, to_plain
 from egs_bench.geometry import write_tum
+from egs_bench.images import image_header, write_depth_png, write_ldr_image
 from egs_bench.interop.camera_files import (
     monogs_config,
     nice_slam_config,
@@ -70,6 +71,7 @@ from egs_bench.interop.camera_files import (
     orbslam3_settings,
     rampvo_k_yaml,
 )
+from egs_bench.outputs import check_never_replaced
 
 FORMATS = ("tum-rgbd", "replica", "eds")
 MANIFEST = "egs_export.yaml"
@@ -145,22 +147,17 @@ def _write_index_map(path: Path, t_export: np.ndarray, t_seq: np.ndarray,
 def _copy_rgb(seq, i: int, dst: Path) -> None:
     """Copy frame ``i``'s PNG bytes when it is plain 8-bit RGB (what every loader reads),
     re-encode it otherwise."""
-    from PIL import Image
-
     src = seq.frame_path(i, "rgb")
-    with Image.open(src) as img:
-        plain = img.format == "PNG" and img.mode == "RGB"
+    plain = src.suffix.lower() == ".png" and image_header(src)[2] == "RGB"
     if plain:
         shutil.copyfile(src, dst)
     else:
-        Image.fromarray(seq.rgb(i)).save(dst, format="PNG")
+        write_ldr_image(dst, seq.rgb(i))  # dst is a .png name
 
 
 def _depth_png(seq, i: int, dst: Path, scale: float) -> int:
     """Write frame ``i``'s depth at ``scale`` units per metre; returns the number of valid
     pixels lost to the 16-bit range. Copies the bytes when the scale is unchanged."""
-    import cv2
-
     from egs_bench.datasets.sequence import encode_depth
 
     src = seq.frame_path(i, "depth")
@@ -169,7 +166,7 @@ def _depth_png(seq, i: int, dst: Path, scale: float) -> int:
         return 0
     depth = seq.depth(i)
     raw = encode_depth(depth, scale)
-    cv2.imwrite(str(dst), raw)
+    write_depth_png(dst, raw)
     return int(((depth > 0) & (raw == 0)).sum())
 
 
@@ -375,6 +372,7 @@ def export_sequence(sequence, out: str | Path, *, fmt: str, overwrite: bool = Fa
     if fmt == "eds" and not seq.has_events:
         raise InputError(seq.path, "has no events; the eds layout (RampVO) needs them")
     out = Path(out)
+    check_never_replaced(out, inputs=[seq.path])
     _check_out(out, overwrite)
     out_abs = out.resolve()
     n = len(seq)
@@ -385,7 +383,7 @@ def export_sequence(sequence, out: str | Path, *, fmt: str, overwrite: bool = Fa
     if retimed:
         notes.append("time stamps rewritten to t_0 + j/30 s: the sequence has frames at most "
                      "1/32 s apart, which MonoGS' TUM loader would drop")
-    with atomic_path(out) as tmp:
+    with atomic_dir(out, replace=overwrite) as tmp:
         tmp.mkdir()
         if fmt == "tum-rgbd":
             files, extra, more = _export_tum(seq, tmp, n, t_export, out_abs, progress)

@@ -12,11 +12,11 @@ from __future__ import annotations
 from collections.abc import Iterator
 from pathlib import Path
 
-import cv2
 import numpy as np
 
 from egs_bench.errors import InputError
 from egs_bench.geometry import read_tum
+from egs_bench.images import read_depth_png, read_ldr_image
 from egs_bench.recordings.streams import DepthStream, FrameStream, PoseTrack, exposure_windows
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
@@ -80,16 +80,16 @@ def frame_folder(folder: Path, times: Path, unit: str, stamp: str,
                                 "time marks: start, mid or end)")
     else:
         t0, t1 = exposure_windows(t[:, 0], int(exposure_us), stamp)
-    first = _read_image(files[0], cv2.IMREAD_COLOR)
+    first = read_ldr_image(files[0])
     h, w = first.shape[:2]
 
     def load(indices: list[int]) -> Iterator[tuple[int, np.ndarray]]:
         for i in indices:
-            img = _read_image(files[i], cv2.IMREAD_COLOR)
+            img = read_ldr_image(files[i])
             if img.shape[:2] != (h, w):
                 raise InputError(files[i], f"image is {img.shape[1]}x{img.shape[0]}, the first "
                                            f"is {w}x{h}")
-            yield i, cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
+            yield i, img
 
     return FrameStream(str(folder), t0, t1, w, h, load)
 
@@ -121,16 +121,6 @@ def tum_track(path: Path) -> PoseTrack:
     return PoseTrack(str(path), t, traj.poses)
 
 
-def _read_image(path: Path, flags: int) -> np.ndarray:
-    img = cv2.imread(str(path), flags)
-    if img is None:
-        raise InputError(path, "unreadable image")
-    return img
-
-
 def _read_depth(path: Path, depth_scale: float) -> np.ndarray:
-    raw = _read_image(path, cv2.IMREAD_UNCHANGED)
-    if raw.dtype != np.uint16 or raw.ndim != 2:
-        raise InputError(path, f"depth images must be single-channel 16-bit PNGs, got "
-                               f"{raw.dtype} with shape {raw.shape}")
+    raw = read_depth_png(path)
     return (raw.astype(np.float64) / depth_scale).astype(np.float32)

@@ -31,8 +31,9 @@ from tqdm import tqdm
 from egs_bench import __version__
 from egs_bench.datasets.events import Events
 from egs_bench.errors import ConfigError, InputError
-from egs_bench.fileio import atomic_path
+from egs_bench.fileio import atomic_dir
 from egs_bench.geometry import interpolate_trajectory, invert_pose
+from egs_bench.outputs import prepare_output
 from egs_bench.recordings.calib import RecordingCalib, load_calib
 from egs_bench.recordings.depth import reproject_depth, warp_to_depth_camera
 from egs_bench.recordings.presets import get_preset
@@ -398,11 +399,9 @@ def import_recording(spec: RecordingSpec, out: str | Path, *, overwrite: bool = 
     from egs_bench.datasets.sequence import Sequence, SequenceWriter
 
     out = Path(out)
-    if out.exists():
-        if not overwrite:
-            raise ConfigError(f"{out} already exists (pass --overwrite to replace it)")
-        if not (out / "meta.yaml").is_file():
-            raise ConfigError(f"{out} exists and is not a sequence folder: not replacing it")
+    prepare_output(out, "sequence", overwrite=overwrite,
+                   inputs=[spec.events, spec.frames, spec.depth, spec.gt, spec.calib,
+                           spec.frame_times, spec.depth_times])
     spec = apply_preset(spec)
     inp = _open_inputs(spec)
     plan = _plan(inp, spec)
@@ -435,7 +434,7 @@ def import_recording(spec: RecordingSpec, out: str | Path, *, overwrite: bool = 
     }
     ev_stats = {"read": 0, "outside_undistorted": 0}
     valid_frac: list[float] = []
-    with atomic_path(out) as tmp:
+    with atomic_dir(out, replace=overwrite) as tmp:
         writer = SequenceWriter(tmp, meta, t_offset_us=int(plan.t_start[0]), with_sharp=False)
         for batch in _events_in(inp.events, lut, cam.width, cam.height, int(plan.t_start[0]),
                                 int(plan.t_end[-1]), ev_stats):

@@ -1,4 +1,4 @@
-"""Gaussian map and differentiable Gaussian rasteriser (DESIGN §5).
+"""Gaussian map and differentiable Gaussian rasteriser (docs/design.md §5).
 
 * :func:`rasterize` renders N Gaussians into C pinhole cameras (gsplat 1.5.3-style API) with
   gradients to every Gaussian parameter and to the world-to-camera matrices; backends

@@ -1,4 +1,4 @@
-"""The per-pixel compositing rule shared by every backend (DESIGN §5), in one place.
+"""The per-pixel compositing rule shared by every backend (docs/design.md §5), in one place.
 
 For each pixel, Gaussians are visited in increasing camera depth ``z``:
 

@@ -8,8 +8,9 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from egs_bench.fileio import atomic_path
+from egs_bench.color import linear_to_srgb8, to_uint8
 from egs_bench.geometry import Intrinsics
+from egs_bench.images import write_ldr_image
 from egs_bench.render.gaussian_map import GaussianMap
 
 
@@ -64,8 +65,6 @@ def render_demo(out_png: str | Path, width: int = 224, height: int = 128, downsa
     """Build a map from :func:`synthetic_rgbd` (one view, ``add_from_depth``), render it from the
     same pose and from a pose moved 0.3 m right and turned 8 degrees, and save
     ``[input | render | depth | novel view]`` as an 8-bit sRGB PNG. Returns the map."""
-    import imageio.v3 as iio
-
     from egs_bench.render.rasterize import rasterize
 
     rgb, depth, intr = synthetic_rgbd(width, height)
@@ -86,21 +85,13 @@ def render_demo(out_png: str | Path, width: int = 224, height: int = 128, downsa
 
     dep = out.expected_depth[0].numpy()
     cmap = matplotlib.colormaps["viridis"]
-    dep_rgb = (cmap(np.clip(dep / max(depth.max(), 1e-6), 0, 1))[..., :3] * 255).astype(np.uint8)
+    dep_rgb = to_uint8(cmap(np.clip(dep / max(depth.max(), 1e-6), 0, 1))[..., :3])
     dep_rgb[out.alpha[0].numpy() < 0.5] = 0
     gap = np.full((height, 4, 3), 255, np.uint8)
-    panel = np.concatenate([srgb8(rgb), gap, srgb8(out.rgb[0].numpy()), gap, dep_rgb, gap,
-                            srgb8(out.rgb[1].numpy())], axis=1)
-    with atomic_path(out_png) as tmp:
-        iio.imwrite(tmp, panel, extension=".png")
+    panel = np.concatenate([linear_to_srgb8(rgb), gap, linear_to_srgb8(out.rgb[0].numpy()), gap,
+                            dep_rgb, gap, linear_to_srgb8(out.rgb[1].numpy())], axis=1)
+    write_ldr_image(out_png, panel)
     return gmap
-
-
-def srgb8(linear: np.ndarray) -> np.ndarray:
-    """Linear RGB (any shape [..., 3]) -> 8-bit sRGB, clipped to [0, 1] first."""
-    x = np.clip(linear, 0, 1)
-    y = np.where(x <= 0.0031308, 12.92 * x, 1.055 * x ** (1 / 2.4) - 0.055)
-    return (y * 255 + 0.5).astype(np.uint8)
 
 
 def frame_map(gmap: GaussianMap, width: int, height: int) -> tuple[np.ndarray, Intrinsics]:
@@ -129,8 +120,6 @@ def render_map_png(
 ) -> None:
     """Render ``gmap`` from camera-to-world pose ``T_wc`` [4,4] (default: :func:`frame_map`)
     and save it as an 8-bit sRGB PNG (linear colours are sRGB-encoded, clipped at 1)."""
-    import imageio.v3 as iio
-
     from egs_bench.render.rasterize import rasterize
 
     pose, intr = frame_map(gmap, width, height)
@@ -141,5 +130,4 @@ def render_map_png(
     with torch.no_grad():
         out = rasterize(gmap.means, gmap.quats, gmap.scales, gmap.opacities, gmap.colors, view,
                         K, intr.width, intr.height, backend=backend)  # type: ignore[arg-type]
-    with atomic_path(out_png) as tmp:
-        iio.imwrite(tmp, srgb8(out.rgb[0].cpu().numpy()), extension=".png")
+    write_ldr_image(out_png, linear_to_srgb8(out.rgb[0].cpu().numpy()))

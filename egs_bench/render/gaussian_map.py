@@ -130,8 +130,9 @@ class GaussianMap:
         """A detached copy on ``device`` with float tensors in ``dtype`` (ids stay int64)."""
         def conv(t: torch.Tensor) -> torch.Tensor:
             return t.detach().to(device=device, dtype=dtype).clone()
-        return GaussianMap(*(conv(getattr(self, n)) for n in PARAM_NAMES),
-                           self.keyframe_ids.detach().to(device=device).clone())
+        params = {n: conv(getattr(self, n)) for n in PARAM_NAMES}
+        return GaussianMap(**params, keyframe_ids=self.keyframe_ids.detach().to(device=device)
+                           .clone())
 
     def clone(self) -> GaussianMap:
         """A detached copy."""

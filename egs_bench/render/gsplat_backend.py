@@ -71,13 +71,14 @@ def rasterize_gsplat(
     near_plane: float,
     far_plane: float,
     visibility: bool = True,
-) -> tuple[torch.Tensor | None, ...]:
+) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor | None, torch.Tensor,
+           torch.Tensor, torch.Tensor]:
     """gsplat rendering; returns rgb [C,H,W,3], depth [C,H,W], alpha [C,H,W], visibility
     [C,N] (None unless ``visibility``), radii [C,N] int32, means2d [C,N,2], depths [C,N]
     (see :class:`RasterResult`)."""
     gsplat = _import_gsplat()
     if means.device.type != "cuda":
-        raise ConfigError("backend 'gsplat' needs CUDA tensors (use backend='numba' on the CPU)")
+        raise ValueError("backend 'gsplat' needs CUDA tensors (use backend='numba' on the CPU)")
     C, N = viewmats.shape[0], means.shape[0]
     renders, alphas, meta = gsplat.rasterization(
         means, quats, scales, opacities, colors, viewmats, Ks.to(means.dtype), width, height,

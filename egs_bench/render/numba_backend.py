@@ -29,7 +29,7 @@ def _n_tiles(width: int, height: int) -> int:
 
 class _CompositeTiles(torch.autograd.Function):
     @staticmethod
-    def forward(  # type: ignore[override]
+    def forward(
         ctx: Any,
         means2d: torch.Tensor,
         conics: torch.Tensor,
@@ -66,7 +66,7 @@ class _CompositeTiles(torch.autograd.Function):
         return torch.from_numpy(rgb), torch.from_numpy(dep), alpha, visibility
 
     @staticmethod
-    def backward(  # type: ignore[override]
+    def backward(
         ctx: Any,
         g_rgb: torch.Tensor | None,
         g_dep: torch.Tensor | None,

@@ -7,7 +7,6 @@ from typing import Literal
 
 import torch
 
-from egs_bench.errors import ConfigError
 from egs_bench.render import constants as RC
 from egs_bench.render.projection import project_gaussians
 
@@ -69,18 +68,18 @@ def _check_inputs(
     }
     for name, (t, shape) in expect.items():
         if tuple(t.shape) != shape:
-            raise ConfigError(f"rasterize: {name} has shape {tuple(t.shape)}, expected {shape}")
+            raise ValueError(f"rasterize: {name} has shape {tuple(t.shape)}, expected {shape}")
     if viewmats.dim() != 3 or viewmats.shape[1:] != (4, 4):
-        raise ConfigError(f"rasterize: viewmats has shape {tuple(viewmats.shape)}, need [C,4,4]")
+        raise ValueError(f"rasterize: viewmats has shape {tuple(viewmats.shape)}, need [C,4,4]")
     if Ks.shape != (viewmats.shape[0], 3, 3):
-        raise ConfigError(
+        raise ValueError(
             f"rasterize: Ks has shape {tuple(Ks.shape)}, need [{viewmats.shape[0]},3,3]"
         )
     if width <= 0 or height <= 0:
-        raise ConfigError(f"rasterize: image size {width}x{height} must be positive")
+        raise ValueError(f"rasterize: image size {width}x{height} must be positive")
     dtypes = {t.dtype for t in (means, quats, scales, opacities, colors, viewmats)}
     if len(dtypes) != 1 or next(iter(dtypes)) not in (torch.float32, torch.float64):
-        raise ConfigError(
+        raise ValueError(
             "rasterize: means, quats, scales, opacities, colors and viewmats must share one "
             f"float32/float64 dtype, got {sorted(str(d) for d in dtypes)}"
         )
@@ -92,7 +91,7 @@ def resolve_backend(backend: Backend, device: torch.device) -> str:
     if backend == "auto":
         return "gsplat" if device.type == "cuda" else "numba"
     if backend not in ("numba", "reference", "gsplat"):
-        raise ConfigError(
+        raise ValueError(
             f"rasterize: unknown backend {backend!r} (auto, numba, reference, gsplat)"
         )
     return backend
@@ -178,7 +177,7 @@ def rasterize(
         vis = vis if visibility else None
     if backgrounds is not None:
         if backgrounds.shape != (viewmats.shape[0], 3):
-            raise ConfigError(
+            raise ValueError(
                 f"rasterize: backgrounds has shape {tuple(backgrounds.shape)}, "
                 f"need [{viewmats.shape[0]},3]"
             )

@@ -4,9 +4,11 @@ Every method run writes one folder; ``egs-bench eval`` reads it and adds ``metri
 
     <run>/run.yaml          identity: method name, sequence name + path, egs-bench version,
                             optional ``groundtruth`` (a TUM file, for runs with no sequence folder),
-                            optional ``estimate`` (imports: what the external output covers)
+                            optional ``estimate`` (imports: what the external output covers),
+                            ``artifacts`` (method-specific files, e.g. ``map.ply``)
     <run>/config.yaml       the method's fully resolved configuration
-    <run>/status.json       {"state": "running"|"done"|"failed", "reason", "tracking_lost", ...}
+    <run>/status.json       {"state": "running"|"done"|"failed"|"interrupted", "reason",
+                             "tracking_lost", "pid", "host", "heartbeat_utc", ...}
     <run>/trajectory.txt    estimated T_wc, TUM format, one pose per frame at its exposure end
     <run>/keyframes.txt     frame indices (0-based) of the keyframes, one per line
     <run>/renders/%06d.png  LDR sRGB renders from the estimated poses, named by frame index
@@ -14,19 +16,25 @@ Every method run writes one folder; ``egs-bench eval`` reads it and adds ``metri
     <run>/log.txt           free-form human-readable log (append-only)
     <run>/metrics.json      written by evaluation (never by the method)
     <run>/plots/            written by ``egs-bench plot``
+    <run>/.lock             held (``flock``) by the process writing the run
 
 Every file except the append-only log is written atomically (temp file + rename), so a reader
-never sees a half-written file. A typical method run::
+never sees a half-written file. One process at a time writes a run folder: :meth:`create` takes
+the folder's lock and keeps it until the run is marked done, failed or interrupted; the kernel
+releases it when the process dies. A ``running`` status whose writer is gone (lock free on this
+host, or no heartbeat from another host for :data:`STALE_AFTER_S`) reads as ``interrupted``.
+A typical method run::
 
     run = RunFolder.create(out_dir, method="egs", sequence_name=seq.name,
                            sequence_path=seq.path, config=resolved_cfg)
-    with run.failure_guard():          # marks the run failed (with the reason) on an exception
+    with run.failure_guard():          # failed (or interrupted, on Ctrl-C / SIGTERM) + reason
         for i in range(len(seq)):
             ...
             run.write_render(i, ldr_uint8)
         run.write_trajectory(seq.timestamps_s, est_poses)
         run.write_keyframes(keyframe_ids)
         run.write_timing(total_wall_s=..., per_frame_s=..., render_fps=...)
+        gmap.save_ply(run.artifact_path("map.ply"))
         run.mark_done()
 """
 
@@ -35,7 +43,10 @@ from __future__ import annotations
 import contextlib
 import datetime as _dt
 import json
+import os
 import re
+import socket
+import threading
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -45,9 +56,18 @@ import numpy as np
 import yaml
 
 from egs_bench import __version__
-from egs_bench.errors import InputError
-from egs_bench.fileio import atomic_path, to_plain, write_text_atomic
+from egs_bench.errors import InputError, OutputError
+from egs_bench.fileio import (
+    FileLock,
+    lock_is_held,
+    owner_note,
+    read_text,
+    to_plain,
+    write_text_atomic,
+)
 from egs_bench.geometry import Trajectory, read_tum, write_tum
+from egs_bench.images import read_ldr_image, write_ldr_image
+from egs_bench.outputs import prepare_output
 
 RUN_FILE = "run.yaml"
 CONFIG_FILE = "config.yaml"
@@ -59,8 +79,17 @@ TIMING_FILE = "timing.json"
 LOG_FILE = "log.txt"
 METRICS_FILE = "metrics.json"
 PLOTS_DIR = "plots"
+LOCK_FILE = ".lock"
+#: the plots ``egs-bench plot`` writes into ``plots/``
+PLOT_FILES = ("trajectory_top.png", "ate_over_time.png", "qualitative.png")
+_STANDARD_FILES = (RUN_FILE, CONFIG_FILE, STATUS_FILE, TRAJECTORY_FILE, KEYFRAMES_FILE,
+                   TIMING_FILE, LOG_FILE, METRICS_FILE)
 
-STATES = ("running", "done", "failed")
+STATES = ("running", "done", "failed", "interrupted")
+#: seconds between two heartbeats of a running run (written to ``status.json``)
+HEARTBEAT_S = 60.0
+#: a ``running`` run written on another host is interrupted after this long without heartbeat
+STALE_AFTER_S = 600.0
 #: ``run.yaml`` ``estimate`` keys and their values for a method's own run (every frame has a
 #: pose and a render, metric scale). Imports of external outputs record what they really hold.
 ESTIMATE_DEFAULTS: dict[str, Any] = {"poses": "all", "renders": "all", "scale_free": False}
@@ -70,19 +99,25 @@ _RENDER_NAME = re.compile(r"^(\d{6,})\.png$")
 
 @dataclass(frozen=True)
 class RunStatus:
-    """Content of ``status.json``.
+    """Content of ``status.json``, with stale runs detected.
 
     Attributes:
-        state: ``"running"``, ``"done"`` or ``"failed"``.
-        reason: why the run failed (``None`` unless failed).
+        state: ``"running"``, ``"done"``, ``"failed"`` or ``"interrupted"`` (stopped by a
+            signal, or a ``running`` run whose writing process is gone).
+        reason: why the run failed or stopped (``None`` when running or done).
         tracking_lost: the failure was a tracking loss (leaderboards show ``L``, not ``--``).
         updated_utc: ISO-8601 UTC time of the last status change.
+        pid, host: the process that wrote the run.
+        heartbeat_utc: last sign of life of that process while running.
     """
 
     state: str
     reason: str | None = None
     tracking_lost: bool = False
     updated_utc: str = ""
+    pid: int | None = None
+    host: str | None = None
+    heartbeat_utc: str | None = None
 
 
 @dataclass(frozen=True)
@@ -109,11 +144,19 @@ def _now_utc() -> str:
     return _dt.datetime.now(_dt.UTC).strftime("%Y-%m-%dT%H:%M:%SZ")
 
 
-def _read_json(path: Path) -> dict[str, Any]:
-    if not path.is_file():
-        raise InputError(path, "file not found")
+def _parse_utc(text: str | None) -> _dt.datetime | None:
+    if not text:
+        return None
     try:
-        data = json.loads(path.read_text())
+        return _dt.datetime.strptime(text, "%Y-%m-%dT%H:%M:%SZ").replace(tzinfo=_dt.UTC)
+    except ValueError:
+        return None
+
+
+def _read_json(path: Path) -> dict[str, Any]:
+    text = read_text(path)
+    try:
+        data = json.loads(text)
     except json.JSONDecodeError as exc:
         raise InputError(path, f"not valid JSON ({exc})") from None
     if not isinstance(data, dict):
@@ -122,12 +165,11 @@ def _read_json(path: Path) -> dict[str, Any]:
 
 
 def _read_yaml(path: Path) -> dict[str, Any]:
-    if not path.is_file():
-        raise InputError(path, "file not found")
+    text = read_text(path)
     try:
-        data = yaml.safe_load(path.read_text())
+        data = yaml.safe_load(text)
     except yaml.YAMLError as exc:
-        raise InputError(path, f"not valid YAML ({exc})") from None
+        raise InputError(path, f"not valid YAML ({exc})".replace("\n", " ")) from None
     if data is None:
         data = {}
     if not isinstance(data, dict):
@@ -139,6 +181,16 @@ def _dump_yaml(data: Mapping[str, Any]) -> str:
     return yaml.safe_dump(to_plain(data), sort_keys=False, default_flow_style=False)
 
 
+def _pid_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
 class RunFolder:
     """One method run on one sequence (see the module docstring for the layout).
 
@@ -148,6 +200,12 @@ class RunFolder:
     def __init__(self, path: Path, info: dict[str, Any]) -> None:
         self.path = path
         self._info = info
+        self._lock: FileLock | None = None
+        self._status_lock = threading.Lock()
+        self._state: str | None = None
+        self._started_utc = ""
+        self._beat_stop = threading.Event()
+        self._beat_thread: threading.Thread | None = None
 
     # ---------------------------------------------------------------- creation / opening
     @classmethod
@@ -162,11 +220,13 @@ class RunFolder:
         groundtruth: str | Path | None = None,
         overwrite: bool = False,
         estimate: Mapping[str, Any] | None = None,
+        inputs: Sequence[str | Path] = (),
     ) -> RunFolder:
-        """Create a run folder, write ``run.yaml`` + ``config.yaml`` and mark it ``running``.
+        """Create a run folder, take its lock, write ``run.yaml`` + ``config.yaml`` and mark
+        it ``running``.
 
         Args:
-            path: the folder to create (parents are created).
+            path: the folder to create (parents are created); an empty folder is used as is.
             method: method name as it should appear in leaderboards (e.g. ``"egs"``).
             sequence_name: name of the sequence (leaderboard column).
             sequence_path: folder of the canonical sequence the run used (stored absolute), or
@@ -174,15 +234,19 @@ class RunFolder:
             config: the method's resolved configuration (plain data, stored as YAML).
             groundtruth: optional TUM ground-truth file; used by evaluation instead of the
                 sequence's ``groundtruth.txt`` (required when ``sequence_path`` is ``None``).
-            overwrite: allow reusing a folder that already holds a run (its files are replaced;
-                stale renders and metrics are removed).
+            overwrite: replace an existing run folder written by egs-bench. Only the files a
+                run writes are removed (the standard files, ``renders/NNNNNN.png``, the plots,
+                the ``artifacts`` of ``run.yaml``); anything else in the folder is kept.
             estimate: what the estimate covers, for imported external outputs: ``poses`` and
                 ``renders`` each ``"all"``, ``"keyframes"``, ``"subset"`` or ``"none"``,
                 ``scale_free`` (monocular: evaluated with Sim(3)), plus free-form ``source`` /
                 ``format`` entries. Omitted: :data:`ESTIMATE_DEFAULTS`.
+            inputs: further input files or folders the output may not replace (the sequence
+                folder and ground truth are always protected).
 
         Raises:
-            InputError: the folder already holds a run and ``overwrite`` is false.
+            OutputError: the folder holds a run and ``overwrite`` is false, is not a run folder,
+                is another process's running run, or is (or contains) an input.
         """
         path = Path(path)
         if not method or not sequence_name:
@@ -192,33 +256,88 @@ class RunFolder:
         for key in ("poses", "renders"):
             if estimate is not None and estimate.get(key, "all") not in ESTIMATE_COVERAGE:
                 raise ValueError(f"estimate {key} must be one of {ESTIMATE_COVERAGE}")
-        if (path / RUN_FILE).exists():
-            if not overwrite:
-                raise InputError(path, "already holds a run (pass overwrite=True / --overwrite)")
-            for stale in (METRICS_FILE, TRAJECTORY_FILE, KEYFRAMES_FILE, TIMING_FILE, LOG_FILE):
-                (path / stale).unlink(missing_ok=True)
-            for sub in (RENDERS_DIR, PLOTS_DIR):
-                if (path / sub).is_dir():
-                    for f in (path / sub).iterdir():
-                        f.unlink()
+        protected = [p for p in (sequence_path, groundtruth, *inputs) if p is not None]
+        cls._refuse_if_locked(path)
+        prepare_output(path, "run", overwrite=overwrite, inputs=protected)
         path.mkdir(parents=True, exist_ok=True)
-        info: dict[str, Any] = {
-            "method": str(method),
-            "sequence": {
-                "name": str(sequence_name),
-                "path": str(Path(sequence_path).resolve()) if sequence_path is not None else None,
-            },
-            "groundtruth": str(Path(groundtruth).resolve()) if groundtruth is not None else None,
-            "egs_bench_version": __version__,
-            "created_utc": _now_utc(),
-        }
-        if estimate is not None:
-            info["estimate"] = {**ESTIMATE_DEFAULTS, **dict(estimate)}
-        write_text_atomic(path / RUN_FILE, _dump_yaml(info))
-        run = cls(path, info)
-        run.write_config(config or {})
-        run.mark_running()
+        lock = FileLock(path / LOCK_FILE)
+        if not lock.acquire(owner_note()):
+            cls._refuse_if_locked(path)
+            raise OutputError(path, "is being written by another egs-bench process")
+        try:
+            # checked again under the lock: another process may have finished a run here
+            # between the first check and the lock
+            prepare_output(path, "run", overwrite=overwrite, inputs=protected)
+            stale = cls._remove_run_files(path) if (path / RUN_FILE).exists() else []
+            info: dict[str, Any] = {
+                "method": str(method),
+                "sequence": {
+                    "name": str(sequence_name),
+                    "path": str(Path(sequence_path).resolve()) if sequence_path is not None
+                    else None,
+                },
+                "groundtruth": str(Path(groundtruth).resolve()) if groundtruth is not None
+                else None,
+                "egs_bench_version": __version__,
+                "created_utc": _now_utc(),
+                "artifacts": [],
+            }
+            if estimate is not None:
+                info["estimate"] = {**ESTIMATE_DEFAULTS, **dict(estimate)}
+            write_text_atomic(path / RUN_FILE, _dump_yaml(info))
+            run = cls(path, info)
+            run._lock = lock
+            run.write_config(config or {})
+            run.mark_running()
+        except BaseException:
+            lock.release()
+            raise
+        if stale:
+            run.log(f"kept {len(stale)} file(s) of the replaced run folder that a run does not "
+                    f"write: {', '.join(stale[:5])}")
         return run
+
+    @staticmethod
+    def _refuse_if_locked(path: Path) -> None:
+        if lock_is_held(path / LOCK_FILE):
+            who = ""
+            with contextlib.suppress(InputError):
+                data = _read_json(path / STATUS_FILE)
+                if data.get("pid") is not None:
+                    who = f" (pid {data.get('pid')} on {data.get('host')})"
+            raise OutputError(path, f"is being written by another egs-bench process{who}; "
+                                    "wait for it to finish or choose another --out")
+
+    @staticmethod
+    def _remove_run_files(path: Path) -> list[str]:
+        """Delete what a run wrote into ``path``; returns the names of other entries kept."""
+        try:
+            artifacts = _read_yaml(path / RUN_FILE).get("artifacts") or []
+        except InputError:
+            artifacts = []
+        names = set(_STANDARD_FILES) | {str(a) for a in artifacts if isinstance(a, str)}
+        for name in names:
+            target = path / name
+            if "/" not in name and target.is_file() and not target.is_symlink():
+                target.unlink()
+        for sub, allowed in ((RENDERS_DIR, None), (PLOTS_DIR, set(PLOT_FILES))):
+            folder = path / sub
+            if not folder.is_dir():
+                continue
+            for f in folder.iterdir():
+                ours = _RENDER_NAME.match(f.name) if allowed is None else f.name in allowed
+                if ours and f.is_file():
+                    f.unlink()
+            if not any(folder.iterdir()):
+                folder.rmdir()
+        kept = []
+        for entry in sorted(path.iterdir()):
+            if entry.name in (LOCK_FILE, RENDERS_DIR, PLOTS_DIR):
+                if entry.name != LOCK_FILE:
+                    kept += [f"{entry.name}/{f.name}" for f in sorted(entry.iterdir())]
+                continue
+            kept.append(entry.name)
+        return kept
 
     @classmethod
     def open(cls, path: str | Path) -> RunFolder:
@@ -238,6 +357,10 @@ class RunFolder:
             raise InputError(path / RUN_FILE, "missing 'method'")
         if not isinstance(seq, dict) or not isinstance(seq.get("name"), str) or not seq["name"]:
             raise InputError(path / RUN_FILE, "missing 'sequence: {name, path}'")
+        if seq.get("path") is not None and not isinstance(seq.get("path"), str):
+            raise InputError(path / RUN_FILE, "'sequence.path' must be a path")
+        if info.get("groundtruth") is not None and not isinstance(info["groundtruth"], str):
+            raise InputError(path / RUN_FILE, "'groundtruth' must be a path")
         if not seq.get("path") and not info.get("groundtruth"):
             raise InputError(path / RUN_FILE, "needs 'sequence.path' or 'groundtruth'")
         return cls(path, info)
@@ -291,35 +414,83 @@ class RunFolder:
         return _read_yaml(self.path / CONFIG_FILE)
 
     # ---------------------------------------------------------------- status
-    def _write_status(self, status: RunStatus) -> None:
+    def _write_status(self, state: str, reason: str | None = None,
+                      tracking_lost: bool = False) -> None:
+        now = _now_utc()
+        if state != self._state:
+            self._started_utc = now
         data = {
-            "state": status.state,
-            "reason": status.reason,
-            "tracking_lost": status.tracking_lost,
-            "updated_utc": status.updated_utc or _now_utc(),
+            "state": state,
+            "reason": reason,
+            "tracking_lost": tracking_lost,
+            "updated_utc": self._started_utc,
+            "pid": os.getpid(),
+            "host": socket.gethostname(),
+            "heartbeat_utc": now,
         }
         write_text_atomic(self.path / STATUS_FILE, json.dumps(data, indent=2) + "\n")
+        self._state = state
+
+    def _finish(self, state: str, reason: str | None = None, tracking_lost: bool = False
+                ) -> None:
+        self._beat_stop.set()
+        with self._status_lock:
+            self._write_status(state, reason, tracking_lost)
+        if self._beat_thread is not None and self._beat_thread is not threading.current_thread():
+            self._beat_thread.join(timeout=5)
+        if self._lock is not None:
+            self._lock.release()
+            self._lock = None
+
+    def _heartbeat_loop(self) -> None:
+        while not self._beat_stop.wait(HEARTBEAT_S):
+            with self._status_lock:
+                if self._state != "running" or self._beat_stop.is_set():
+                    return
+                try:
+                    self._write_status("running")
+                except (OSError, InputError, OutputError):
+                    return  # the folder went away: nothing left to keep alive
 
     def mark_running(self) -> None:
-        """Set the status to ``running``."""
-        self._write_status(RunStatus("running"))
+        """Set the status to ``running``; while running, a background thread refreshes the
+        heartbeat every :data:`HEARTBEAT_S` seconds."""
+        with self._status_lock:
+            self._write_status("running")
+        if self._lock is not None and self._beat_thread is None:
+            self._beat_stop.clear()
+            self._beat_thread = threading.Thread(target=self._heartbeat_loop, daemon=True,
+                                                 name=f"heartbeat {self.path}")
+            self._beat_thread.start()
 
     def mark_done(self) -> None:
-        """Set the status to ``done`` (call after every output file is written)."""
-        self._write_status(RunStatus("done"))
+        """Set the status to ``done`` (call after every output file is written); releases the
+        folder's lock."""
+        self._finish("done")
 
     def mark_failed(self, reason: str, *, tracking_lost: bool = False) -> None:
-        """Set the status to ``failed`` with a one-line ``reason``.
+        """Set the status to ``failed`` with a one-line ``reason``; releases the lock.
 
         Args:
             reason: human-readable cause (shown in leaderboard footnotes).
             tracking_lost: the method lost tracking (shown as ``L`` rather than ``--``).
         """
-        self._write_status(RunStatus("failed", reason=reason, tracking_lost=tracking_lost))
+        self._finish("failed", reason, tracking_lost)
         self.log(f"FAILED: {reason}")
 
+    def mark_interrupted(self, reason: str) -> None:
+        """Set the status to ``interrupted`` (stopped by a signal, e.g. Ctrl-C or a cluster's
+        SIGTERM) with a one-line ``reason``; releases the lock."""
+        self._finish("interrupted", reason)
+        self.log(f"INTERRUPTED: {reason}")
+
     def read_status(self) -> RunStatus:
-        """Read ``status.json``.
+        """Read ``status.json``; a ``running`` run whose writer is gone reads as
+        ``interrupted`` (with the evidence in ``reason``).
+
+        The writer is gone when, on this host, the folder's lock is free (or, without a lock
+        file, its pid is dead), and, from another host, when its heartbeat is older than
+        :data:`STALE_AFTER_S`.
 
         Raises:
             InputError: missing or malformed file, or an unknown state.
@@ -329,22 +500,76 @@ class RunFolder:
         state = data.get("state")
         if state not in STATES:
             raise InputError(path, f"state must be one of {', '.join(STATES)}, found {state!r}")
-        return RunStatus(
+        reason, pid, host = data.get("reason"), data.get("pid"), data.get("host")
+        if reason is not None and not isinstance(reason, str):
+            raise InputError(path, f"'reason' must be text or null, found {reason!r}")
+        if not isinstance(data.get("tracking_lost", False), bool):
+            raise InputError(path, "'tracking_lost' must be true or false")
+        if pid is not None and (isinstance(pid, bool) or not isinstance(pid, int)):
+            raise InputError(path, f"'pid' must be an integer, found {pid!r}")
+        if host is not None and not isinstance(host, str):
+            raise InputError(path, f"'host' must be text, found {host!r}")
+        status = RunStatus(
             state=state,
-            reason=data.get("reason"),
+            reason=reason,
             tracking_lost=bool(data.get("tracking_lost", False)),
             updated_utc=str(data.get("updated_utc", "")),
+            pid=pid,
+            host=host,
+            heartbeat_utc=str(data["heartbeat_utc"]) if data.get("heartbeat_utc") else None,
         )
+        if state == "running":
+            gone = self._writer_gone(status)
+            if gone:
+                return RunStatus("interrupted", gone, False, status.updated_utc, pid, host,
+                                 status.heartbeat_utc)
+        return status
+
+    def _writer_gone(self, status: RunStatus) -> str | None:
+        """Why the process writing a ``running`` run is known to be gone, or None."""
+        who = f"pid {status.pid} on {status.host}" if status.pid is not None else "its writer"
+        if status.host is None or status.host == socket.gethostname():
+            held = lock_is_held(self.path / LOCK_FILE)
+            if held is False:
+                return f"{who} stopped without finishing the run (killed?)"
+            if held is None and status.pid is not None and not _pid_alive(status.pid):
+                return f"{who} is gone without finishing the run (killed?)"
+            if held is not None or status.pid is not None:
+                return None
+        beat = _parse_utc(status.heartbeat_utc or status.updated_utc)
+        if beat is None:
+            return None
+        age = (_dt.datetime.now(_dt.UTC) - beat).total_seconds()
+        if age > STALE_AFTER_S:
+            return f"no heartbeat from {who} since {status.heartbeat_utc or status.updated_utc}"
+        return None
 
     @contextlib.contextmanager
     def failure_guard(self) -> Iterator[RunFolder]:
-        """Context manager: on an exception, mark the run ``failed`` with it, then re-raise."""
+        """Context manager: on an exception mark the run ``failed`` with it (``interrupted`` on
+        Ctrl-C or SIGTERM, see :class:`egs_bench.errors.Interrupted`), then re-raise."""
         try:
             yield self
+        except KeyboardInterrupt as exc:
+            self.mark_interrupted(str(exc) or "interrupted by SIGINT (Ctrl-C)")
+            raise
         except BaseException as exc:
             reason = f"{type(exc).__name__}: {exc}".strip()
             self.mark_failed(reason.splitlines()[0] if reason else type(exc).__name__)
             raise
+
+    # ---------------------------------------------------------------- artifacts
+    def artifact_path(self, name: str) -> Path:
+        """Path for a method-specific output file (e.g. ``map.ply``), recorded in ``run.yaml``
+        so that ``--overwrite`` removes it with the rest of the run."""
+        if "/" in name or name in _STANDARD_FILES or name.startswith("."):
+            raise ValueError(f"artifact name must be a plain new file name, not {name!r}")
+        artifacts = list(self._info.get("artifacts") or [])
+        if name not in artifacts:
+            artifacts.append(name)
+            self._info["artifacts"] = artifacts
+            write_text_atomic(self.path / RUN_FILE, _dump_yaml(self._info))
+        return self.path / name
 
     # ---------------------------------------------------------------- trajectory / keyframes
     @property
@@ -380,7 +605,7 @@ class RunFolder:
         if not path.is_file():
             return None
         out = []
-        for lineno, line in enumerate(path.read_text().splitlines(), start=1):
+        for lineno, line in enumerate(read_text(path).splitlines(), start=1):
             line = line.strip()
             if not line or line.startswith("#"):
                 continue
@@ -409,13 +634,7 @@ class RunFolder:
             frame_index: 0-based frame index in the sequence.
             image: sRGB render, uint8 [H, W, 3] (float input is rejected: quantise first).
         """
-        import imageio.v3 as iio
-
-        image = np.asarray(image)
-        if image.dtype != np.uint8 or image.ndim != 3 or image.shape[2] != 3:
-            raise ValueError(f"render must be uint8 [H, W, 3], got {image.dtype} {image.shape}")
-        with atomic_path(self.render_path(frame_index)) as tmp:
-            iio.imwrite(tmp, image, extension=".png")
+        write_ldr_image(self.render_path(frame_index), image)
 
     def render_indices(self) -> list[int]:
         """Sorted frame indices that have a render."""
@@ -430,8 +649,6 @@ class RunFolder:
 
     def read_render(self, frame_index: int) -> np.ndarray:
         """Read a render as uint8 [H, W, 3]; raises :class:`InputError` if missing/unreadable."""
-        from egs_bench.eval.image_io import read_ldr_image
-
         path = self.render_path(frame_index)
         if not path.is_file():
             raise InputError(path, f"render of frame {frame_index} not found")

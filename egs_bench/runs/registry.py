@@ -2,8 +2,10 @@
 
 A method is any object with a ``name``, a one-line ``description`` and
 ``run(sequence, out, *, preset, device, seed, max_frames, progress) -> RunFolder`` that writes
-a run folder (:mod:`egs_bench.runs.folder`). The built-in SLAM methods register themselves
-from :mod:`egs_bench.slam.methods`; users add methods by
+a run folder (:mod:`egs_bench.runs.folder`, created with :meth:`RunFolder.create`, which takes
+the folder's lock and refuses to replace an existing run). Methods that also accept
+``overwrite: bool`` support ``egs-bench run --overwrite``. The built-in SLAM methods register
+themselves from :mod:`egs_bench.slam.methods`; users add methods by
 
 * an entry point in the group ``egs_bench.methods`` (value: a method object, or a callable
   returning one), e.g. in ``pyproject.toml``::
@@ -18,7 +20,6 @@ from :mod:`egs_bench.slam.methods`; users add methods by
 from __future__ import annotations
 
 import importlib
-from collections.abc import Callable
 from importlib.metadata import entry_points
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
@@ -45,7 +46,11 @@ class Method(Protocol):
 
     def run(self, sequence: Sequence, out: Path, *, preset: str = "auto", device: str = "auto",
             seed: int = 0, max_frames: int | None = None, progress: bool = True) -> RunFolder:
-        """Process ``sequence`` and write a complete run folder at ``out``."""
+        """Process ``sequence`` and write a complete run folder at ``out``.
+
+        Methods may also accept ``overwrite: bool = False`` (passed on to
+        :meth:`RunFolder.create`); ``egs-bench run --overwrite`` needs it.
+        """
         ...
 
 
@@ -73,7 +78,7 @@ def builtin_methods() -> dict[str, Method]:
 
 
 def _instantiate(obj: Any, origin: str) -> Method:
-    if not isinstance(obj, Method) and isinstance(obj, Callable):
+    if not isinstance(obj, Method) and callable(obj):
         obj = obj()
     if not isinstance(obj, Method):
         raise ConfigError(f"{origin} does not provide a method (name, description, run())")
@@ -118,3 +123,14 @@ def get_method(name: str) -> Method:
         return _instantiate(obj, name)
     raise ConfigError(f"unknown method {name!r}; available: {', '.join(available_methods())} "
                       "(or give an import path module:attribute)")
+
+
+def supports_overwrite(method: Method) -> bool:
+    """Whether ``method.run`` accepts ``overwrite`` (needed by ``egs-bench run --overwrite``)."""
+    import inspect
+
+    try:
+        params = inspect.signature(method.run).parameters
+    except (TypeError, ValueError):
+        return False
+    return "overwrite" in params or any(p.kind is p.VAR_KEYWORD for p in params.values())

@@ -34,6 +34,7 @@ from typing import Any
 import numpy as np
 import torch
 
+from egs_bench.color import to_uint8
 from egs_bench.errors import ConfigError, InputError
 from egs_bench.fileio import write_text_atomic
 from egs_bench.geometry import Intrinsics
@@ -139,7 +140,7 @@ def read_appearance(path: str | Path) -> Appearance:
 @torch.no_grad()
 def ldr8(crf: CameraResponse, hdr: torch.Tensor,
          exposure: tuple[float, float] | None = None) -> np.ndarray:
-    """8-bit render of linear radiance: ``round(255 clamp(CRF(hdr), 0, 1))``.
+    """8-bit render of linear radiance: ``round(255 clamp(CRF(hdr), 0, 1))`` (:func:`to_uint8`).
 
     Args:
         crf: camera response.
@@ -154,5 +155,4 @@ def ldr8(crf: CameraResponse, hdr: torch.Tensor,
     if exposure is not None:
         a, b = exposure
         ldr = torch.exp(torch.tensor(a, dtype=ldr.dtype, device=ldr.device)) * ldr + b
-    ldr = ldr.clamp(0, 1)
-    return (ldr.cpu().numpy() * 255.0 + 0.5).astype(np.uint8)
+    return to_uint8(ldr.detach().cpu().numpy())

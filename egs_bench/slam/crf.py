@@ -19,27 +19,8 @@ import numpy as np
 import torch
 from torch import nn
 
+from egs_bench.color import linear_to_srgb, srgb_to_linear
 from egs_bench.errors import ConfigError
-
-
-def srgb_encode(linear: np.ndarray | torch.Tensor) -> np.ndarray | torch.Tensor:
-    """sRGB encoding of linear values in [0, 1] (used to initialise the CRF)."""
-    if isinstance(linear, torch.Tensor):
-        lin = linear.clamp(0, 1)
-        return torch.where(lin <= 0.0031308, lin * 12.92, 1.055 * lin.clamp_min(1e-12) ** (1 / 2.4)
-                           - 0.055)
-    lin = np.clip(np.asarray(linear, dtype=np.float64), 0, 1)
-    return np.where(lin <= 0.0031308, lin * 12.92, 1.055 * np.maximum(lin, 1e-12) ** (1 / 2.4)
-                    - 0.055)
-
-
-def srgb_decode(srgb: np.ndarray | torch.Tensor) -> np.ndarray | torch.Tensor:
-    """Linear values of sRGB-encoded values in [0, 1]."""
-    if isinstance(srgb, torch.Tensor):
-        s = srgb.clamp(0, 1)
-        return torch.where(s <= 0.04045, s / 12.92, ((s + 0.055) / 1.055) ** 2.4)
-    s = np.clip(np.asarray(srgb, dtype=np.float64), 0, 1)
-    return np.where(s <= 0.04045, s / 12.92, ((s + 0.055) / 1.055) ** 2.4)
 
 
 class CameraResponse(nn.Module):
@@ -72,10 +53,10 @@ class FixedSRGBCRF(CameraResponse):
     """Fixed sRGB encoding (a non-learnable, physically plausible response)."""
 
     def forward(self, hdr: torch.Tensor) -> torch.Tensor:
-        return srgb_encode(hdr)
+        return linear_to_srgb(hdr)
 
     def inverse(self, ldr: torch.Tensor) -> torch.Tensor:
-        return srgb_decode(ldr)
+        return srgb_to_linear(ldr)
 
 
 class LeakyPiecewiseLinearCRF(CameraResponse):
@@ -87,6 +68,8 @@ class LeakyPiecewiseLinearCRF(CameraResponse):
         init: ``"srgb"`` (nodes on the sRGB curve) or ``"linear"`` (identity on [0, 1]).
     """
 
+    levels: torch.Tensor
+
     def __init__(self, n_nodes: int = 16, alpha: float = 0.01, init: str = "linear",
                  device: str | torch.device = "cpu") -> None:
         super().__init__()
@@ -95,7 +78,7 @@ class LeakyPiecewiseLinearCRF(CameraResponse):
         self.alpha = float(alpha)
         levels = np.linspace(0.0, 1.0, n_nodes)
         if init == "srgb":
-            hdr = srgb_decode(levels)
+            hdr = srgb_to_linear(levels)
         elif init == "linear":
             hdr = levels
         else:
@@ -170,13 +153,13 @@ class _CurveFunction(torch.autograd.Function):
     """A response with a hand-written backward from its precomputed derivative."""
 
     @staticmethod
-    def forward(ctx, hdr: torch.Tensor, curve: FrozenLeakyCurve) -> torch.Tensor:  # type: ignore[override]
+    def forward(ctx, hdr: torch.Tensor, curve: FrozenLeakyCurve) -> torch.Tensor:
         value, slope = curve.value_and_slope(hdr)
         ctx.save_for_backward(slope)
         return value
 
     @staticmethod
-    def backward(ctx, grad: torch.Tensor):  # type: ignore[override]
+    def backward(ctx, grad: torch.Tensor):
         (slope,) = ctx.saved_tensors
         return grad * slope, None
 

@@ -11,7 +11,7 @@ import cv2
 import numpy as np
 import torch
 
-from egs_bench.datasets.color import LUMA_BT601
+from egs_bench.color import LUMA_BT601
 
 
 def rgb_boundary_mask(obs_rgb: torch.Tensor, threshold: float = 0.01) -> torch.Tensor:

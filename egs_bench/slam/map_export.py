@@ -166,7 +166,8 @@ def render_map_view(src: MapSource, *, frame: int | None = None, pose: np.ndarra
     Raises:
         ConfigError: inconsistent options.
     """
-    from egs_bench.render.demo import frame_map, srgb8
+    from egs_bench.color import linear_to_srgb8
+    from egs_bench.render.demo import frame_map
 
     app = src.appearance
     if frame is not None and pose is not None:
@@ -191,14 +192,14 @@ def render_map_view(src: MapSource, *, frame: int | None = None, pose: np.ndarra
     kwargs = {"near_plane": app.near_plane} if app is not None else {}
     hdr = gmap.render(view, K, camera.width, camera.height, backend=backend, **kwargs).rgb[0]
     if app is not None:
-        ab = app.exposure_of(frame) if exposure else None
+        ab = app.exposure_of(frame) if exposure and frame is not None else None
         what = f"linear map through the run's {crf_to_dict(app.crf)['kind']} CRF"
         if ab is not None:
             what += f" and frame {frame}'s exposure (a={ab[0]:.4f}, b={ab[1]:.4f})"
         return ldr8(app.crf, hdr, ab), what
     space = color_space(src, colors)
     if space == "linear":
-        return srgb8(hdr.cpu().numpy()), "linear colours, sRGB-encoded (no CRF)"
+        return linear_to_srgb8(hdr.cpu().numpy()), "linear colours, sRGB-encoded (no CRF)"
     img = (hdr.clamp(0, 1).cpu().numpy() * 255.0 + 0.5).astype(np.uint8)
     return img, "display colours, shown as they are"
 

@@ -18,7 +18,7 @@ from dataclasses import dataclass, fields
 import numpy as np
 import torch
 
-from egs_bench.datasets.color import LUMA_BT601
+from egs_bench.color import LUMA_BT601
 from egs_bench.render import GaussianMap
 from egs_bench.render.gaussian_map import FrozenGaussians
 from egs_bench.slam.config import SlamConfig

@@ -10,38 +10,59 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
+from egs_bench.datasets.sequence import Sequence
+from egs_bench.errors import ConfigError, InputError
 from egs_bench.fileio import write_text_atomic
 from egs_bench.geometry import invert_pose
 from egs_bench.runs.folder import RunFolder
 from egs_bench.slam.appearance import APPEARANCE_FILE, MAP_FILE, Appearance, ldr8, write_appearance
 from egs_bench.slam.config import SlamConfig, resolve_device
 from egs_bench.slam.render_model import render_views
-from egs_bench.slam.system import FrameReport, SlamSystem
+from egs_bench.slam.system import FrameReport, SlamResult, SlamSystem
 
 
-def resolve_sequence(name_or_path: str | Path):
-    """Open a sequence by folder path or name (see :mod:`egs_bench.datasets.registry`; built-in
-    synthetic names are generated under the data root on first use)."""
-    from egs_bench.datasets.registry import resolve_sequence as resolve_path
-    from egs_bench.datasets.sequence import Sequence
+def check_inputs(seq: Sequence, config: SlamConfig, max_frames: int | None) -> int:
+    """The number of frames to process; rejects runs that cannot give a meaningful result.
 
-    return Sequence.open(resolve_path(name_or_path))
+    Raises:
+        ConfigError: ``max_frames`` below 1.
+        InputError: the method uses events (event tracking or mapping) but the sequence has
+            none (``has_events: false`` in its ``meta.yaml``): event losses would see empty
+            event maps and the no-event loss would pull every frame towards "no motion".
+    """
+    if max_frames is not None and int(max_frames) < 1:
+        raise ConfigError(f"--max-frames must be at least 1, got {max_frames}")
+    if (config.method.event_tracking or config.method.event_mapping) and not seq.has_events:
+        used = [n for n in ("event_tracking", "event_mapping") if getattr(config.method, n)]
+        raise InputError(seq.path / "meta.yaml",
+                         f"has_events is false, but the method uses events ({', '.join(used)}); "
+                         "run a method without events (egs-no-events, monogs) or set "
+                         + " and ".join(f"{n}=false" for n in used))
+    return len(seq) if max_frames is None else min(len(seq), int(max_frames))
 
 
-def run_slam(seq, out: str | Path, *, method_name: str, config: SlamConfig, preset: str = "paper",
-             device: str = "cpu", seed: int = 0, max_frames: int | None = None,
-             progress: bool = True, overwrite: bool = True) -> RunFolder:
+def run_slam(seq: Sequence, out: str | Path, *, method_name: str, config: SlamConfig,
+             preset: str = "paper", device: str = "cpu", seed: int = 0,
+             max_frames: int | None = None, progress: bool = True,
+             overwrite: bool = False) -> RunFolder:
     """Run the SLAM system configured by ``config`` on ``seq``; write a complete run folder.
 
     Writes the estimated ``T_tau`` of every processed frame (TUM, exposure-end stamps), the
     keyframes, LDR renders of the sharp latent image at ``T_tau`` for every processed frame at
     the sequence's resolution, the map (``map.ply``) with what reproduces the renders from it
     (``appearance.json``: CRF, camera, per-frame exposure; :mod:`egs_bench.slam.appearance`),
-    timing, ``slam_stats.json`` (divergences, map size) and the log. On any exception
-    (including Ctrl-C) the folder is marked failed.
+    timing, ``slam_stats.json`` (divergences, map size) and the log. On an exception the folder
+    is marked failed (interrupted on Ctrl-C or SIGTERM) with the reason.
+
+    Args:
+        overwrite: replace an existing run folder at ``out`` (see :meth:`RunFolder.create`).
+
+    Raises:
+        ConfigError, InputError: see :func:`check_inputs`; OutputError: ``out`` may not be
+        written (see :func:`egs_bench.outputs.prepare_output`).
     """
     device = resolve_device(device)
-    n = len(seq) if max_frames is None else max(1, min(len(seq), int(max_frames)))
+    n = check_inputs(seq, config, max_frames)
     resolved = {"method": method_name, "preset": preset, "seed": seed, "device": device,
                 "frames": n, "slam": config.to_dict()}
     run = RunFolder.create(out, method=method_name, sequence_name=seq.name,
@@ -80,8 +101,8 @@ def run_slam(seq, out: str | Path, *, method_name: str, config: SlamConfig, pres
         render_fps = _write_renders(run, system, result, seq)
         run.write_timing(total_wall_s=total_wall,
                          per_frame_s=[r.wall_s for r in result.reports], render_fps=render_fps)
-        result.gmap.save_ply(run.path / MAP_FILE)
-        write_appearance(run.path / APPEARANCE_FILE, Appearance(
+        result.gmap.save_ply(run.artifact_path(MAP_FILE))
+        write_appearance(run.artifact_path(APPEARANCE_FILE), Appearance(
             system.crf, seq.intrinsics, config.mapping.near_plane,
             np.array([s.index for s in result.states]),
             np.asarray(seq.timestamps_s[:n], dtype=np.float64),
@@ -91,7 +112,8 @@ def run_slam(seq, out: str | Path, *, method_name: str, config: SlamConfig, pres
                  "gaussians": len(result.gmap), "divergences": result.divergences,
                  "tracking_iterations": [r.iterations for r in result.reports],
                  "fps": n / total_wall if total_wall > 0 else None}
-        write_text_atomic(run.path / "slam_stats.json", json.dumps(stats, indent=1) + "\n")
+        write_text_atomic(run.artifact_path("slam_stats.json"),
+                          json.dumps(stats, indent=1) + "\n")
         run.log(f"done: {n} frames in {total_wall:.1f} s ({stats['fps']:.3f} fps), "
                 f"{len(result.keyframes)} keyframes, {len(result.gmap)} Gaussians, "
                 f"{len(result.divergences)} divergence(s)")
@@ -100,7 +122,8 @@ def run_slam(seq, out: str | Path, *, method_name: str, config: SlamConfig, pres
 
 
 @torch.no_grad()
-def _write_renders(run: RunFolder, system: SlamSystem, result, seq) -> float:
+def _write_renders(run: RunFolder, system: SlamSystem, result: SlamResult, seq: Sequence
+                   ) -> float:
     """Render the sharp latent image at every frame's ``T_tau`` at full resolution; returns the
     rendering speed (renders per second)."""
     full = seq.intrinsics

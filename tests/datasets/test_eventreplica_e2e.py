@@ -8,7 +8,7 @@ import pytest
 import replica_testscene as scene
 
 from egs_bench.cli import main
-from egs_bench.datasets.color import linear_to_srgb
+from egs_bench.color import linear_to_srgb
 from egs_bench.datasets.eventreplica import (
     ReplicaSource,
     ResizeCrop,
@@ -154,5 +154,5 @@ def test_cli_bad_options(replica_dir, tmp_path, capsys, args, message):
 def test_cli_bad_input_names_the_file(tmp_path, capsys):
     code = main(["make-eventreplica", "--input", str(tmp_path / "missing"), "--out",
                  str(tmp_path / "o")])
-    assert code == 2
+    assert code == 3  # a data error (exit 2 is for usage errors)
     assert f"{tmp_path / 'missing'}: scene folder does not exist" in capsys.readouterr().err

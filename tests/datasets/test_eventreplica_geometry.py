@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from egs_bench.datasets.color import linear_to_srgb
+from egs_bench.color import linear_to_srgb
 from egs_bench.datasets.eventreplica import ReplicaSource, ResizeCrop
 from egs_bench.datasets.replica import export_replica_layout, read_replica
 from egs_bench.errors import ConfigError
@@ -126,3 +126,16 @@ def test_bad_geometry_config():
     with pytest.raises(ConfigError, match="larger than image"):
         ResizeCrop(width=200, height=100, resize=None).intrinsics(
             Intrinsics(100.0, 100.0, 50.0, 25.0, 100, 50))
+
+
+def test_auto_resize_keeps_the_aspect_ratio_except_the_papers_replica_size():
+    from egs_bench.datasets.eventreplica.resize import auto_resize
+
+    assert auto_resize(1200, 680, 448, 256) == (459, 260)  # the paper's EventReplica setting
+    assert auto_resize(640, 480, 448, 256) == (448, 336)  # 7-Scenes / TUM: one scale factor
+    assert auto_resize(1200, 680, 224, 128) == (226, 128)  # other crops: cover, keep the ratio
+    kinect = Intrinsics(525.0, 525.0, 320.0, 240.0, 640, 480)
+    out = ResizeCrop().intrinsics(kinect)  # the default rule is "auto"
+    assert (out.width, out.height) == (448, 256)
+    assert out.fx == out.fy == pytest.approx(525.0 * 0.7)
+    assert (out.cx, out.cy) == pytest.approx((224.0, 240.0 * 0.7 - 40))

@@ -40,9 +40,15 @@ def test_info_and_show_commands(tiny_sequence: Path, tmp_path: Path, capsys) -> 
     assert main(["show", str(tiny_sequence), "--frame", "9", "--out", str(out)]) == 2
     err = capsys.readouterr().err
     assert "out of range" in err and "Traceback" not in err
+    assert main(["show", str(tiny_sequence), "--frame", "2", "--out", str(out)]) == 2
+    assert "already exists; pass --overwrite" in capsys.readouterr().err
+    before = out.read_bytes()
+    assert main(["show", str(tiny_sequence), "--frame", "2", "--out", str(out),
+                 "--overwrite"]) == 0
+    assert out.read_bytes() != before  # frame 2's panel replaced frame 1's
 
 
 def test_info_bad_path_is_one_line(tmp_path: Path, capsys) -> None:
-    assert main(["info", str(tmp_path / "missing")]) == 2
+    assert main(["info", str(tmp_path / "missing")]) == 3  # a data error, not a usage error
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and "not found" in err

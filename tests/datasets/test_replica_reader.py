@@ -174,7 +174,7 @@ def test_depth_not_16_bit(tmp_path):
     err = _expect(path)
     assert err.path.name == "depth000000.png" and "16-bit" in err.problem
     scene = read_replica(path, check_image_headers=False)
-    with pytest.raises(InputError, match="depth000000.png: depth must be a single-channel 16-bit"):
+    with pytest.raises(InputError, match="depth000000.png: depth PNG must be single-channel"):
         scene.depth(0)
 
 
@@ -184,7 +184,7 @@ def test_corrupt_image(tmp_path):
     err = _expect(path)
     assert err.path.name == "frame000002.png" and "unreadable" in err.problem
     scene = read_replica(path, check_image_headers=False)
-    with pytest.raises(InputError, match="cannot decode"):
+    with pytest.raises(InputError, match="frame000002.png: cannot read image"):
         scene.rgb(2)
 
 

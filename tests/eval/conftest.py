@@ -2,12 +2,9 @@
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
 import pytest
-
-sys.path.insert(0, str(Path(__file__).parent))
 
 
 @pytest.fixture(autouse=True)
@@ -22,7 +19,10 @@ def _isolated_eval_env(tmp_path_factory, monkeypatch) -> None:
 
 
 @pytest.fixture(scope="session")
-def tiny_sequence(tmp_path_factory) -> Path:
+def eval_sequence(tmp_path_factory) -> Path:
+    """A 12-frame 64x48 canonical sequence with known poses and images (no events); see
+    ``eval_fixtures.make_sequence``. ``tests/eval`` is on ``sys.path`` because pytest inserts
+    the folder of every test module and conftest that is not inside a package."""
     from eval_fixtures import make_sequence
 
     return make_sequence(tmp_path_factory.mktemp("seqs"))

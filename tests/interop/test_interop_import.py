@@ -15,7 +15,7 @@ import pytest
 
 from egs_bench.baselines.import_runs import import_external_run, monogs_kept_frames
 from egs_bench.datasets.sequence import Sequence
-from egs_bench.errors import ConfigError, InputError
+from egs_bench.errors import ConfigError, InputError, OutputError
 from egs_bench.eval.evaluate import evaluate_run
 from egs_bench.geometry import invert_pose, pose_from_tq, pose_to_tq
 from egs_bench.interop.export import export_sequence
@@ -362,7 +362,7 @@ def test_import_safety_and_options(seq: Sequence, export: Path, tmp_path: Path) 
     with pytest.raises(InputError, match="holds neither"):
         import_external_run(tmp_path, tmp_path / "r", fmt="orbslam2", export_dir=export)
     import_external_run(tmp_path / "orb", tmp_path / "r", fmt="orbslam2", export_dir=export)
-    with pytest.raises(InputError, match="already holds a run"):
+    with pytest.raises(OutputError, match="already exists; pass --overwrite"):
         import_external_run(tmp_path / "orb", tmp_path / "r", fmt="orbslam2", export_dir=export)
     run = import_external_run(tmp_path / "orb", tmp_path / "r", fmt="orbslam2",
                               export_dir=export, overwrite=True, method="ORB2-custom")

@@ -31,7 +31,7 @@ import egs_bench.cli.slam_cmds  # noqa: F401
 from egs_bench.cli import main
 from egs_bench.cli.app import app
 from egs_bench.datasets.sequence import Sequence
-from egs_bench.errors import ConfigError, InputError
+from egs_bench.errors import InputError, OutputError
 from egs_bench.geometry import rotation_angle, write_tum
 from egs_bench.recordings import RecordingSpec, import_recording
 
@@ -225,9 +225,10 @@ def test_existing_output_is_not_replaced(rig: Rig, tmp_path: Path) -> None:
     out = tmp_path / "o"
     out.mkdir()
     (out / "notes.txt").write_text("mine")
-    with pytest.raises(ConfigError, match="already exists"):
+    with pytest.raises(OutputError, match="already exists and has no readable meta.yaml"):
         import_recording(_spec(rig), out, progress=False)
-    with pytest.raises(ConfigError, match="not a sequence folder"):
+    with pytest.raises(OutputError, match="--overwrite only replaces a sequence folder written "
+                                          "by egs-bench"):
         import_recording(_spec(rig), out, overwrite=True, progress=False)
     assert (out / "notes.txt").read_text() == "mine"
 
@@ -238,7 +239,7 @@ def test_cli_error_is_one_line(rig: Rig, tmp_path: Path, capsys) -> None:
                  "--calib", str(rig.calib),
                  "--camera-info-topic", "/dvs/camera_info", "--gt-topic", "/nope"])
     err = capsys.readouterr().err
-    assert code == 2
+    assert code == 3  # a data error (the bag lacks the topic)
     assert err.startswith(f"error: {rig.bag}: no topic '/nope'") and err.count("\n") == 1
 
 

@@ -2,20 +2,23 @@
 
 from __future__ import annotations
 
-import imageio.v3 as iio
 import numpy as np
+import pytest
 import torch
-from typer.testing import CliRunner
 
-import egs_bench.cli.render_cmds  # noqa: F401  (registers the commands)
-from egs_bench.cli.app import app
+from egs_bench.cli import main
 from egs_bench.geometry import Intrinsics
+from egs_bench.images import read_ldr_image
 from egs_bench.render import GaussianMap
 
-runner = CliRunner()
+
+def _cli(capsys, *argv: str) -> tuple[int, str]:
+    code = main(list(argv))
+    return code, capsys.readouterr().err
 
 
-def test_render_map_writes_png_and_reports_bad_input(tmp_path):
+@pytest.fixture
+def plane_ply(tmp_path):
     intr = Intrinsics(30.0, 30.0, 16, 12, 32, 24)
     gmap = GaussianMap.empty()
     gmap.add_from_depth(np.full((24, 32, 3), 0.5, np.float32), np.full((24, 32), 2.0, np.float32),
@@ -23,13 +26,29 @@ def test_render_map_writes_png_and_reports_bad_input(tmp_path):
                         generator=torch.Generator().manual_seed(0))
     ply = tmp_path / "m.ply"
     gmap.save_ply(ply)
+    return ply
+
+
+def test_render_map_writes_png(tmp_path, plane_ply, capsys):
     out = tmp_path / "v.png"
-    res = runner.invoke(app, ["render-map", str(ply), "-o", str(out), "--width", "48",
-                              "--height", "32", "--pose", "0 0 0 0 0 0 1"])
-    assert res.exit_code == 0, res.output
-    img = iio.imread(out)
+    code, err = _cli(capsys, "render-map", str(plane_ply), "-o", str(out), "--width", "48",
+                     "--height", "32", "--pose", "0 0 0 0 0 0 1")
+    assert code == 0, err
+    img = read_ldr_image(out)
     assert img.shape == (32, 48, 3) and img[16, 24].max() > 100  # the grey plane is in view
-    res = runner.invoke(app, ["render-map", str(tmp_path / "none.ply"), "-o", str(out)])
-    assert res.exit_code != 0
-    res = runner.invoke(app, ["render-map", str(ply), "-o", str(out), "--pose", "1 2 3"])
-    assert res.exit_code != 0
+
+
+@pytest.mark.parametrize("argv,code,message", [
+    (["{tmp}/none.ply"], 3, "none.ply: no such file"),
+    (["{ply}", "--pose", "1 2 3"], 2, "--pose needs 7 numbers 'tx ty tz qx qy qz qw', got '1 2 3'"),
+    (["{ply}", "--pose", "0 0 0 0 0 0 0"], 2, "non-zero quaternion"),
+    (["{ply}", "--backend", "cuda-magic"], 2, "--backend must be one of auto, numba, gsplat"),
+])
+def test_render_map_reports_bad_input_in_one_line(tmp_path, plane_ply, capsys, argv, code,
+                                                  message):
+    out = tmp_path / "v.png"
+    argv = [a.replace("{tmp}", str(tmp_path)).replace("{ply}", str(plane_ply)) for a in argv]
+    got, err = _cli(capsys, "render-map", *argv, "-o", str(out))
+    assert got == code and message in err, err
+    assert len(err.strip().splitlines()) == 1 and "internal error" not in err
+    assert not out.exists()

@@ -176,13 +176,20 @@ def test_visibility_means_touched_above_half_transmittance():
         assert (out.depth[0, 12, 16] > 0.9 * 2.0)
 
 
-def test_bad_inputs_raise_config_error():
+def test_bad_inputs_are_programming_errors():
+    """Wrong shapes or dtypes come from calling code, not from a user: ValueError (reported by
+    the CLI as an internal error), never ConfigError."""
     scene = random_scene(n=5, c=2)
-    with pytest.raises(ConfigError, match="quats"):
+    with pytest.raises(ValueError, match=r"rasterize: quats has shape \(5, 3\), expected"):
         rasterize(**dict(scene, quats=scene["quats"][:, :3]))
-    with pytest.raises(ConfigError, match="Ks"):
+    with pytest.raises(ValueError, match=r"rasterize: Ks has shape \(1, 3, 3\), need \[2,3,3\]"):
         rasterize(**dict(scene, Ks=scene["Ks"][:1]))
-    with pytest.raises(ConfigError, match="backend"):
+    with pytest.raises(ValueError, match="unknown backend 'magic'"):
         rasterize(**scene, backend="magic")
-    with pytest.raises(ConfigError, match="dtype"):
+    with pytest.raises(ValueError, match="must share one float32/float64 dtype"):
         rasterize(**dict(scene, colors=scene["colors"].float()))
+    for bad in (lambda: rasterize(**dict(scene, quats=scene["quats"][:, :3])),
+                lambda: rasterize(**scene, backend="magic")):
+        with pytest.raises(Exception) as info:
+            bad()
+        assert not isinstance(info.value, ConfigError)

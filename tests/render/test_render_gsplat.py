@@ -13,9 +13,17 @@ HAVE_CUDA = torch.cuda.is_available()
 
 
 def test_gsplat_backend_rejects_cpu_tensors_or_missing_package():
+    """Without gsplat installed, asking for it is a user-fixable ConfigError; with it, CPU
+    tensors are a programming error (ValueError, as CUDA tensors are in the numba backend)."""
+    import importlib.util
+
     scene = random_scene(n=10, c=1, dtype=torch.float32)
-    with pytest.raises(ConfigError, match="gsplat"):
-        rasterize(**scene, backend="gsplat")
+    if importlib.util.find_spec("gsplat") is None:
+        with pytest.raises(ConfigError, match=r"backend 'gsplat' needs gsplat 1.5.3"):
+            rasterize(**scene, backend="gsplat")
+    else:
+        with pytest.raises(ValueError, match="backend 'gsplat' needs CUDA tensors"):
+            rasterize(**scene, backend="gsplat")
 
 
 @pytest.mark.cuda

@@ -1,9 +1,10 @@
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
 
-from egs_bench.errors import InputError
+from egs_bench.errors import InputError, OutputError
 from egs_bench.geometry import pose_from_tq
 from egs_bench.runs.folder import RunFolder, find_runs
 
@@ -38,7 +39,8 @@ def test_run_folder_roundtrip(tmp_path) -> None:
     assert timing is not None and timing.fps == 2.0 and timing.render_fps == 100.0
     assert again.read_status().state == "done"
     assert "hello" in again.log_path.read_text()
-    assert not list(again.path.glob("*.tmp")) and not list(again.path.glob(".*tmp"))
+    hidden = [p.relative_to(again.path) for p in again.path.rglob(".*")]
+    assert hidden == [Path(".lock")]  # no temporary file left by the atomic writes
     assert find_runs(tmp_path) == [tmp_path / "r"]
 
 
@@ -48,7 +50,7 @@ def test_run_folder_failure_guard_and_overwrite(tmp_path) -> None:
         raise RuntimeError("diverged at frame 7")
     status = run.read_status()
     assert status.state == "failed" and "diverged at frame 7" in status.reason
-    with pytest.raises(InputError, match="already holds a run"):
+    with pytest.raises(OutputError, match="already exists; pass --overwrite"):
         RunFolder.create(tmp_path / "r", method="m", sequence_name="s", sequence_path=tmp_path)
     RunFolder.create(tmp_path / "r", method="m", sequence_name="s", sequence_path=tmp_path,
                      overwrite=True)

@@ -75,9 +75,9 @@ def test_render_map_reproduces_the_runs_render(egs_run, tmp_path, frame) -> None
                               str(out)])
     assert res.exit_code == 0, res.output
     assert "through the run's learnable CRF" in res.output
-    import imageio.v3 as iio
+    from egs_bench.images import read_ldr_image
 
-    ours, theirs = iio.imread(out), egs_run.read_render(frame)
+    ours, theirs = read_ldr_image(out), egs_run.read_render(frame)
     assert ours.shape == theirs.shape
     assert psnr(ours, theirs) >= 40.0  # measured: identical images (PSNR inf)
     # without the CRF (the map's linear colours shown as they are) the render is far off
@@ -263,29 +263,33 @@ def test_bad_inputs_one_line_each(egs_run, tmp_path, capsys) -> None:
     export_display_ply(open_map(egs_run.path), exported)
     run, ply = str(egs_run.path), str(egs_run.path / "map.ply")
     png = str(tmp_path / "o.png")
+    # exit code 3: a file is missing or wrong; 2: an option (or the output path) is wrong
     cases = [
-        (["export-map", ply, "-o", str(tmp_path / "x.ply")], "needs the run's appearance.json"),
-        (["export-map", run, "-o", str(exported)], "d.ply: exists (pass --overwrite"),
-        (["export-map", run, "-o", ply, "--overwrite"], "is the source map itself"),
-        (["render-map", ply, "--frame", "1", "-o", png], "--frame needs a run folder"),
-        (["render-map", run, "--frame", "9", "-o", png], "the run has no frame 9"),
-        (["render-map", run, "--exposure", "-o", png], "--exposure needs --frame"),
-        (["render-map", run, "--frame", "1", "--pose", "0 0 0 0 0 0 1", "-o", png],
+        (["export-map", ply, "-o", str(tmp_path / "x.ply")], 3,
+         "needs the run's appearance.json"),
+        (["export-map", run, "-o", str(exported)], 2,
+         "d.ply: already exists; pass --overwrite"),
+        (["export-map", run, "-o", ply, "--overwrite"], 2,
+         f"map.ply: is inside the input {run}; refusing to replace it"),
+        (["render-map", ply, "--frame", "1", "-o", png], 2, "--frame needs a run folder"),
+        (["render-map", run, "--frame", "9", "-o", png], 2, "the run has no frame 9"),
+        (["render-map", run, "--exposure", "-o", png], 2, "--exposure needs --frame"),
+        (["render-map", run, "--frame", "1", "--pose", "0 0 0 0 0 0 1", "-o", png], 2,
          "give --frame or --pose, not both"),
-        (["render-map", run, "--colors", "display", "-o", png],
+        (["render-map", run, "--colors", "display", "-o", png], 2,
          "--colors applies to maps rendered without an appearance file"),
         (["render-map", str(exported), "--appearance", str(egs_run.path / "appearance.json"),
-          "-o", png], "its colours are display values already"),
-        (["render-map", ply, "--appearance", str(tmp_path / "junk.json"), "-o", png],
+          "-o", png], 3, "its colours are display values already"),
+        (["render-map", ply, "--appearance", str(tmp_path / "junk.json"), "-o", png], 3,
          "junk.json: not valid JSON"),
-        (["render-map", ply, "--appearance", str(tmp_path / "other.json"), "-o", png],
+        (["render-map", ply, "--appearance", str(tmp_path / "other.json"), "-o", png], 3,
          "other.json: not an egs-bench appearance file"),
-        (["render-map", ply, "--colors", "hdr", "-o", png], "unknown colour mode 'hdr'"),
+        (["render-map", ply, "--colors", "hdr", "-o", png], 2, "unknown colour mode 'hdr'"),
     ]
-    for argv, message in cases:
+    for argv, expected_code, message in cases:
         code = main(argv)
         err = capsys.readouterr().err
-        assert code == 2, (argv, err)
+        assert code == expected_code, (argv, err)
         assert message in err, (argv, err)
         assert len(err.strip().splitlines()) == 1, err
     assert not Path(png).exists()

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import signal
 from pathlib import Path
 
 import numpy as np
@@ -14,7 +15,7 @@ from typer.testing import CliRunner
 import egs_bench.cli.slam_cmds  # noqa: F401  (registers the commands)
 from egs_bench.cli.app import app
 from egs_bench.datasets.sequence import Sequence
-from egs_bench.errors import ConfigError
+from egs_bench.errors import ConfigError, InputError, Interrupted
 from egs_bench.render.ply import load_ply
 from egs_bench.runs import registry
 from egs_bench.runs.folder import RunFolder
@@ -153,18 +154,25 @@ def test_single_frame_sequence(tiny_sequence: Path, tmp_path: Path) -> None:
     assert len(one.read_trajectory().poses) == 1
 
 
-def test_failure_marks_run_failed(tiny_sequence: Path, tmp_path: Path, monkeypatch) -> None:
+@pytest.mark.parametrize("exc,state,words", [
+    (RuntimeError("CUDA out of memory"), "failed", "RuntimeError: CUDA out of memory"),
+    (KeyboardInterrupt(), "interrupted", "SIGINT"),
+    (Interrupted(signal.SIGTERM), "interrupted", "interrupted by SIGTERM"),
+])
+def test_failure_marks_run_failed_or_interrupted(tiny_sequence: Path, tmp_path: Path, monkeypatch,
+                                                 exc: BaseException, state: str,
+                                                 words: str) -> None:
     seq = Sequence.open(tiny_sequence)
     cfg = methods.BUILTIN["monogs"].config("cpu").replace(**FAST)
 
     def boom(*_a, **_k):
-        raise KeyboardInterrupt
+        raise exc
 
     monkeypatch.setattr("egs_bench.slam.system.track_frame", boom)
-    with pytest.raises(KeyboardInterrupt):
+    with pytest.raises(type(exc)):
         run_slam(seq, tmp_path / "run", method_name="monogs", config=cfg, progress=False)
     status = RunFolder.open(tmp_path / "run").read_status()
-    assert status.state == "failed" and "KeyboardInterrupt" in status.reason
+    assert status.state == state and words in status.reason
 
 
 def test_registry_builtins_import_path_and_errors(tmp_path: Path, monkeypatch) -> None:
@@ -202,7 +210,8 @@ def test_cli_list_methods_and_bad_method() -> None:
     res = runner.invoke(app, ["list", "nonsense"])
     assert res.exit_code != 0 and "nonsense" in res.output
     res = runner.invoke(app, ["run", "--method", "nope", "--seq", "x"])
-    assert res.exit_code != 0
+    assert isinstance(res.exception, ConfigError)
+    assert "unknown method 'nope'; available: egs" in str(res.exception)
 
 
 @pytest.mark.parametrize("options,anchored", [
@@ -243,7 +252,8 @@ def test_black_frame_missing_depth_and_no_events_run_through(tiny_sequence: Path
                                                              tmp_path: Path,
                                                              events: bool) -> None:
     """Frame 2 all black, half of frame 1's depth missing, and (second case) a sequence without
-    events: the run completes with finite poses for every frame."""
+    events, run by the method without events (``egs`` itself is refused on it): the run
+    completes with finite poses for every frame."""
     import shutil
 
     import cv2
@@ -264,9 +274,16 @@ def test_black_frame_missing_depth_and_no_events_run_through(tiny_sequence: Path
         (root / "events.h5").unlink()
     seq = Sequence.open(root)
     assert seq.has_events is events
-    cfg = methods.BUILTIN["egs"].config("cpu").replace(
+    name = "egs" if events else "egs-no-events"
+    cfg = methods.BUILTIN[name].config("cpu").replace(
         **{**FAST, "init_iters": 3, "tracking_iters": 3})
-    run = run_slam(seq, tmp_path / "run", method_name="egs", config=cfg, progress=False)
+    if not events:  # an event method on a sequence without events is refused up front
+        with pytest.raises(InputError, match=r"meta.yaml: has_events is false, but the method "
+                                             r"uses events \(event_tracking, event_mapping\)"):
+            run_slam(seq, tmp_path / "egs", method_name="egs",
+                     config=methods.BUILTIN["egs"].config("cpu"), progress=False)
+        assert not (tmp_path / "egs").exists()
+    run = run_slam(seq, tmp_path / "run", method_name=name, config=cfg, progress=False)
     assert run.read_status().state == "done"
     poses = run.read_trajectory().poses
     assert len(poses) == len(seq) and np.isfinite(poses).all()

@@ -15,11 +15,11 @@ import math
 from collections.abc import Sequence
 from dataclasses import asdict
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
-from egs_bench.datasets.color import CameraResponse
+from egs_bench.color import LdrResponse
 from egs_bench.datasets.esim import EventSimConfig
 from egs_bench.datasets.eventreplica.interpolate import make_interpolator
 from egs_bench.datasets.eventreplica.resize import ResizeCrop
@@ -27,6 +27,7 @@ from egs_bench.datasets.eventreplica.source import ReplicaSource
 from egs_bench.datasets.pipeline import SamplingConfig, generate_sequence
 from egs_bench.datasets.replica import read_replica
 from egs_bench.errors import ConfigError, InputError
+from egs_bench.outputs import prepare_output
 
 
 def exposure_windows(
@@ -56,12 +57,12 @@ def make_eventreplica(
     interpolator: str = "depth",
     width: int = 448,
     height: int = 256,
-    resize: tuple[int, int] | None = (459, 260),
+    resize: tuple[int, int] | Literal["auto"] | None = "auto",
     first: int = 0,
     max_frames: int | None = None,
     cam_params: str | Path | None = None,
     sim: EventSimConfig | None = None,
-    response: CameraResponse | None = None,
+    response: LdrResponse | None = None,
     sampling: SamplingConfig | None = None,
     progress: bool = True,
     overwrite: bool = False,
@@ -79,7 +80,9 @@ def make_eventreplica(
             interval; exposure boundaries are always samples, so a few more).
         interpolator: ``"depth"`` (pose-aware view synthesis) or ``"flow"`` (DIS optical flow).
         width, height: output size after the centre crop.
-        resize: size ``(w, h)`` to resize to before cropping; None = crop only.
+        resize: size ``(w, h)`` to resize to before cropping; ``"auto"`` = the paper's 459x260
+            for Replica's 1200x680 frames, the input's aspect ratio otherwise (see
+            :func:`~egs_bench.datasets.eventreplica.resize.auto_resize`); None = crop only.
         first: first original frame used.
         max_frames: cap on the number of strided frames read (output frames are one fewer).
         cam_params: explicit ``cam_params.json`` (else auto-detected, else Replica defaults).
@@ -92,6 +95,7 @@ def make_eventreplica(
     Returns:
         The sequence folder.
     """
+    prepare_output(out, "sequence", overwrite=overwrite, inputs=[input, cam_params])
     scene = read_replica(input, cam_params=cam_params)
     if not (math.isfinite(fps) and fps > 0):
         raise ConfigError(f"fps must be positive, got {fps}")
@@ -113,7 +117,8 @@ def make_eventreplica(
     )
     ids, t_start, t_end = exposure_windows(source.key_times_us, exposure_us)
     if len(ids) == 0:
-        raise ConfigError(f"{scene.path}: no frame has a full exposure inside the sequence")
+        raise InputError(scene.path, "no frame has a full exposure inside the sequence (too "
+                                     "few frames for --stride / --first / --max-frames?)")
     sim = sim or EventSimConfig()
     meta_extra: dict[str, Any] = {
         "name": Path(out).name,
@@ -127,7 +132,8 @@ def make_eventreplica(
             "first": first,
             "fps_strided": fps,
             "original_frames": [int(source.frame_indices[i]) for i in ids],
-            "resize": None if resize is None else list(resize),
+            "resize": list(source.geometry.resized_size(scene.intrinsics)),
+            "resize_rule": resize if isinstance(resize, str) or resize is None else "explicit",
             "crop": [width, height],
             "interpolator": source.interpolator.name,
             "interpolator_settings": asdict(source.interpolator),  # type: ignore[call-overload]
@@ -139,8 +145,8 @@ def make_eventreplica(
     }
     return generate_sequence(
         source, t_start, t_end, out, meta_extra=meta_extra, sim=sim,
-        response=response or CameraResponse(), sampling=sampling, progress=progress,
-        overwrite=overwrite,
+        response=response or LdrResponse(), sampling=sampling, progress=progress,
+        overwrite=overwrite, inputs=[input, cam_params],
     )
 
 
@@ -159,6 +165,12 @@ def make_eventreplica_scenes(
     missing = [s for s in scenes if not (root / s).is_dir()]
     if missing:
         raise InputError(root / missing[0], "scene folder does not exist")
+    # every scene's input and output are checked before the first is generated, so a bad
+    # scene or output path does not stop the batch half-way
+    for s in scenes:
+        prepare_output(Path(out) / s, "sequence", overwrite=bool(kwargs.get("overwrite")),
+                       inputs=[root / s, kwargs.get("cam_params")])
+        read_replica(root / s, cam_params=kwargs.get("cam_params"))
     return [make_eventreplica(root / s, Path(out) / s, **kwargs) for s in scenes]
 
 

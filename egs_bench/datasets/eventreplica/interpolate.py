@@ -31,7 +31,7 @@ from typing import Protocol
 import cv2
 import numpy as np
 
-from egs_bench.datasets.color import linear_to_srgb, luma
+from egs_bench.color import linear_to_srgb, luma, to_uint8
 from egs_bench.datasets.eventreplica.splat_kernels import splat_points
 from egs_bench.errors import ConfigError
 from egs_bench.geometry import Intrinsics, interpolate_pose, invert_pose
@@ -63,7 +63,10 @@ class PairInterpolator(Protocol):
 class FrameInterpolator(Protocol):
     """Builds a :class:`PairInterpolator` for consecutive key frames ``a`` and ``b``."""
 
-    name: str
+    @property
+    def name(self) -> str:
+        """The interpolator's registry name (recorded in ``meta.yaml``)."""
+        ...
 
     def prepare(self, a: KeyFrame, b: KeyFrame, intrinsics: Intrinsics) -> PairInterpolator:
         ...
@@ -188,9 +191,9 @@ class FlowInterpolator:
 class _FlowPair:
     def __init__(self, cfg: FlowInterpolator, a: KeyFrame, b: KeyFrame) -> None:
         self.a, self.b = a, b
-        dis = cv2.DISOpticalFlow_create(_DIS_PRESETS[cfg.preset])
+        dis = cv2.DISOpticalFlow_create(_DIS_PRESETS[cfg.preset])  # type: ignore[attr-defined]
         # DIS works on 8-bit grey; sRGB-encoded luma spreads the codes perceptually.
-        g0, g1 = (np.round(linear_to_srgb(luma(f.rgb)) * 255).astype(np.uint8) for f in (a, b))
+        g0, g1 = (to_uint8(linear_to_srgb(luma(f.rgb))) for f in (a, b))
         self.f01 = dis.calc(g0, g1, None)
         self.f10 = dis.calc(g1, g0, None)
         h, w = g0.shape

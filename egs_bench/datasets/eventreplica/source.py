@@ -14,7 +14,7 @@ from collections import OrderedDict
 
 import numpy as np
 
-from egs_bench.datasets.color import srgb_to_linear
+from egs_bench.color import srgb_to_linear
 from egs_bench.datasets.eventreplica.interpolate import (
     DepthWarpInterpolator,
     FrameInterpolator,

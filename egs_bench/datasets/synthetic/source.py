@@ -8,7 +8,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from egs_bench.datasets.color import CameraResponse
+from egs_bench.color import LdrResponse
 from egs_bench.datasets.esim import EventSimConfig
 from egs_bench.datasets.pipeline import LatentFrame, SamplingConfig, generate_sequence
 from egs_bench.datasets.synthetic.raycast import Renderer
@@ -17,6 +17,7 @@ from egs_bench.datasets.synthetic.scenes import build_scene
 from egs_bench.datasets.synthetic.trajectory import HandheldTrajectory, TumTrajectoryInRoom
 from egs_bench.errors import ConfigError, InputError
 from egs_bench.geometry import Intrinsics, Trajectory, read_tum
+from egs_bench.outputs import prepare_output
 
 # Focal length of EventReplica at 448x256 (600 px at 1200 wide, resized to 459): ~88 deg HFOV.
 FOCAL_PER_WIDTH = 229.5 / 448.0
@@ -176,6 +177,7 @@ def make_synthetic(
         ConfigError: unknown scene or invalid option. InputError: unusable trajectory file.
     """
     _check_options(frames, width, height, fps, exposure_ms, speed, time_scale, supersample)
+    prepare_output(out, "sequence", overwrite=overwrite, inputs=[trajectory])
     sc = build_scene(scene)
     exposure_us = max(1, int(round(exposure_ms * 1e3)))
     t_start, t_end = exposure_windows(frames, fps, exposure_us)
@@ -213,8 +215,9 @@ def make_synthetic(
         out,
         meta_extra=meta_extra,
         sim=sim,
-        response=CameraResponse(gain=gain),
+        response=LdrResponse(gain=gain),
         sampling=sampling or SamplingConfig(),
         progress=progress,
         overwrite=overwrite,
+        inputs=[trajectory],
     )

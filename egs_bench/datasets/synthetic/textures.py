@@ -19,7 +19,7 @@ import cv2
 import numpy as np
 from skimage import data as skdata
 
-from egs_bench.datasets.color import srgb_to_linear
+from egs_bench.color import srgb_to_linear
 
 TEXTURE_SIZE = 512
 

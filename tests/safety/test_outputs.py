@@ -1,0 +1,248 @@
+"""Never lose a user's data: what an output path may replace, command by command.
+
+Each test is a case of issue 12 that deleted or replaced something the tool did not create.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+from safety_helpers import QUICK_RUN
+
+from egs_bench.cli import main
+from egs_bench.datasets.sequence import Sequence
+from egs_bench.errors import OutputError, UnwritableOutputError
+from egs_bench.fileio import atomic_path
+from egs_bench.images import read_ldr_image, write_ldr_image
+from egs_bench.outputs import prepare_output
+
+
+def _cli(capsys, *argv: str | Path) -> tuple[int, str]:
+    code = main([str(a) for a in argv])
+    return code, capsys.readouterr().err
+
+
+def _user_folder(path: Path) -> Path:
+    """A folder holding the user's own data: a note and a sub-folder."""
+    (path / "sub").mkdir(parents=True)
+    (path / "notes.txt").write_text("my notes\n")
+    return path
+
+
+def _snapshot(path: Path) -> dict[str, bytes]:
+    return {str(p.relative_to(path)): p.read_bytes() for p in sorted(path.rglob("*"))
+            if p.is_file()}
+
+
+def _ply(tmp_path: Path) -> Path:
+    import torch
+
+    from egs_bench.geometry import Intrinsics
+    from egs_bench.render import GaussianMap
+
+    gmap = GaussianMap.empty()
+    gmap.add_from_depth(np.full((12, 16, 3), 0.5, np.float32), np.full((12, 16), 2.0, np.float32),
+                        Intrinsics(15.0, 15.0, 8, 6, 16, 12), np.eye(4), downsample=2,
+                        point_size=1.0, generator=torch.Generator().manual_seed(0))
+    path = tmp_path / "map.ply"
+    gmap.save_ply(path)
+    return path
+
+
+# ---------------------------------------------------------------- case 1: a folder became a file
+@pytest.mark.parametrize("command", ["show", "render-map", "render-demo", "leaderboard"])
+@pytest.mark.parametrize("overwrite", [False, True])
+def test_file_outputs_never_replace_a_folder(command, overwrite, tmp_path, tiny_sequence,
+                                             done_run, capsys):
+    target = _user_folder(tmp_path / "d")
+    before = _snapshot(target)
+    argv = {
+        "show": ["show", tiny_sequence, "--frame", "1", "--out", target],
+        "render-map": ["render-map", _ply(tmp_path), "-o", target, "--width", "16",
+                       "--height", "12"],
+        "render-demo": ["render-demo", "-o", target],
+        "leaderboard": ["leaderboard", done_run.path.parent, "-o", target,
+                        "--metrics", "ate", "--no-eval"],
+    }[command] + (["--overwrite"] if overwrite else [])
+    code, err = _cli(capsys, *argv)
+    assert code == 2, err
+    expected = ("is a folder: --overwrite only replaces" if overwrite
+                else "already exists and is a folder; choose another")
+    assert f"{target}: {expected}" in err and len(err.strip().splitlines()) == 1
+    assert target.is_dir() and _snapshot(target) == before
+
+
+def test_overwrite_replaces_only_an_output_of_the_same_kind(tmp_path, tiny_sequence, capsys):
+    notes = tmp_path / "panel.png"
+    notes.write_text("not an image, my notes\n")
+    code, err = _cli(capsys, "show", tiny_sequence, "--frame", "1", "--out", notes,
+                     "--overwrite")
+    assert code == 2 and "is not a PNG image: --overwrite only replaces a PNG image" in err
+    assert notes.read_text() == "not an image, my notes\n"
+    png = tmp_path / "old.png"
+    write_ldr_image(png, np.zeros((4, 4, 3), np.uint8))
+    assert _cli(capsys, "show", tiny_sequence, "--frame", "1", "--out", png)[0] == 2
+    assert read_ldr_image(png).shape == (4, 4, 3)  # kept without --overwrite
+    assert _cli(capsys, "show", tiny_sequence, "--frame", "1", "--out", png,
+                "--overwrite")[0] == 0
+    assert read_ldr_image(png).shape[1] > 300  # the panel replaced it
+
+
+def test_atomic_writes_refuse_folders_and_leave_no_temporary_files(tmp_path):
+    folder = _user_folder(tmp_path / "out.txt")
+    with pytest.raises(OutputError, match="is a folder that is not empty; refusing to replace"):
+        with atomic_path(folder) as tmp:
+            tmp.write_text("x")
+    empty = tmp_path / "empty.txt"
+    empty.mkdir()
+    with pytest.raises(OutputError, match="is a folder; refusing to replace it with a file"):
+        with atomic_path(empty) as tmp:
+            tmp.write_text("x")
+    empty.rmdir()
+    with pytest.raises(RuntimeError), atomic_path(tmp_path / "f.txt") as tmp:
+        tmp.write_text("half")
+        raise RuntimeError("writer failed")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out.txt"]
+
+
+# ---------------------------------------------------------------- case 2: run --out <finished run>
+def test_run_into_a_finished_run_needs_overwrite_and_keeps_user_files(tmp_path, room_sequence,
+                                                                      capsys):
+    out = tmp_path / "run"
+    argv = ["run", "--method", "monogs", "--seq", room_sequence, "--out", out, *QUICK_RUN]
+    assert _cli(capsys, *argv)[0] == 0
+    assert _cli(capsys, "eval", out)[0] == 0
+    (out / "my_notes.txt").write_text("keep me\n")
+    before = _snapshot(out)
+    code, err = _cli(capsys, *argv)
+    assert code == 2 and f"{out}: already exists; pass --overwrite to replace it" in err
+    assert _snapshot(out) == before  # metrics, renders, map: all still there
+    code, err = _cli(capsys, *argv, "--overwrite")
+    assert code == 0, err
+    assert not (out / "metrics.json").exists()  # the old run's evaluation went with it
+    assert (out / "my_notes.txt").read_text() == "keep me\n"  # not written by a run: kept
+    assert "kept 1 file(s) of the replaced run folder" in (out / "log.txt").read_text()
+
+
+def test_run_out_must_be_a_run_folder(tmp_path, tiny_sequence, capsys):
+    user = _user_folder(tmp_path / "docs")
+    before = _snapshot(user)
+    for extra in ([], ["--overwrite"]):
+        code, err = _cli(capsys, "run", "--method", "monogs", "--seq", tiny_sequence, "--out",
+                         user, *QUICK_RUN, *extra)
+        assert code == 2 and "has no readable run.yaml" in err, err
+    assert _snapshot(user) == before
+
+
+# ---------------------------------------------------------------- case 4: the current directory,
+# the input, a parent of the input
+def test_make_synthetic_never_replaces_the_current_directory(tmp_path, monkeypatch, capsys):
+    work = _user_folder(tmp_path / "work")
+    monkeypatch.chdir(work)
+    before = _snapshot(work)
+    code, err = _cli(capsys, "make-synthetic", "--scene", "office", "--out", ".", "--frames",
+                     "2", "--width", "32", "--height", "24", "--overwrite", "--no-progress")
+    assert code == 2 and "is the current directory or one of its parents" in err
+    assert _snapshot(work) == before and sorted(os.listdir(work)) == ["notes.txt", "sub"]
+
+
+def test_make_eventreplica_never_replaces_its_input(tmp_path, capsys):
+    from egs_bench.datasets.replica import export_replica_layout
+    from egs_bench.geometry import Intrinsics
+
+    scene = export_replica_layout([np.full((24, 32, 3), 128, np.uint8)] * 3,
+                                  [np.ones((24, 32))] * 3, [np.eye(4)] * 3, tmp_path / "scene",
+                                  intrinsics=Intrinsics(30.0, 30.0, 16.0, 12.0, 32, 24),
+                                  image_format="png")
+    before = _snapshot(scene)
+    for out in (scene, tmp_path):  # the input itself, a folder containing it
+        code, err = _cli(capsys, "make-eventreplica", "--input", scene, "--out", out,
+                         "--overwrite", "--width", "32", "--height", "24", "--no-progress")
+        assert code == 2, err
+        assert ("is an input of this command" in err if out == scene
+                else f"contains the input {scene}" in err)
+    assert _snapshot(scene) == before
+
+
+def test_generated_sequences_are_replaced_only_when_clean_and_asked(tmp_path, capsys):
+    out = tmp_path / "seq"
+    argv = ["make-synthetic", "--scene", "office", "--out", out, "--frames", "2", "--width",
+            "32", "--height", "24", "--no-progress"]
+    assert _cli(capsys, *argv)[0] == 0
+    first = _snapshot(out)
+    code, err = _cli(capsys, *argv, "--seed", "3")
+    assert code == 2 and "already exists; pass --overwrite" in err and _snapshot(out) == first
+    (out / "notes.txt").write_text("mine\n")
+    code, err = _cli(capsys, *argv, "--seed", "3", "--overwrite")
+    assert code == 2 and "also holds files egs-bench did not write (notes.txt)" in err
+    (out / "notes.txt").unlink()
+    assert _cli(capsys, *argv, "--seed", "3", "--overwrite")[0] == 0
+    assert _snapshot(out) != first and len(Sequence.open(out)) == 2
+    assert [p.name for p in tmp_path.iterdir()] == ["seq"]  # no staging folder left
+
+
+def test_protected_paths_even_with_overwrite(tmp_path, monkeypatch):
+    monkeypatch.setenv("HOME", str(tmp_path / "home"))
+    home = _user_folder(tmp_path / "home")
+    for path in (home, Path(home.anchor)):
+        with pytest.raises(OutputError, match="home directory or one of its parents|root"):
+            prepare_output(path, "sequence", overwrite=True)
+
+
+# ---------------------------------------------------------------- unwritable output locations
+def test_output_under_a_file_is_a_clear_data_error(tmp_path, tiny_sequence, capsys):
+    blocker = tmp_path / "file.txt"
+    blocker.write_text("x")
+    code, err = _cli(capsys, "show", tiny_sequence, "--frame", "1", "--out",
+                     blocker / "panel.png")
+    assert code == 3 and f"{blocker}/panel.png: {blocker} is a file, not a folder" in err
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root ignores folder permissions")
+def test_read_only_output_folder_is_a_clear_data_error(tmp_path, tiny_sequence, capsys):
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    ro.chmod(0o500)
+    try:
+        code, err = _cli(capsys, "show", tiny_sequence, "--frame", "1", "--out", ro / "p.png")
+        assert code == 3 and "permission denied" in err
+        with pytest.raises(UnwritableOutputError):
+            prepare_output(ro / "seq", "sequence")
+    finally:
+        ro.chmod(0o700)
+
+
+def test_demo_rewrites_only_its_own_outputs(tmp_path, monkeypatch):
+    """The demo resumes into its folder: a foreign file where its panel goes is not replaced."""
+    from egs_bench.demo import run_demo
+
+    out = tmp_path / "demo"
+    out.mkdir()
+    shutil.copytree(Path(__file__).parent, out / "unrelated")  # any user content
+    panel = out / "seq_frame.png"
+    panel.write_text("not a png")
+    monkeypatch.setenv("EGS_BENCH_DATA", str(tmp_path / "data"))
+    with pytest.raises(OutputError, match="seq_frame.png: is not a PNG image"):
+        run_demo(out, sequence=str(_plane(tmp_path)), methods=(), say=lambda _t: None,
+                 progress=False)
+    assert panel.read_text() == "not a png"
+
+
+def _plane(tmp_path: Path) -> Path:
+    from plane_scene import make_plane_sequence
+
+    return make_plane_sequence(tmp_path / "seq", frames=2)
+
+
+def test_overwrite_never_replaces_a_file_inside_an_input_folder(seq_copy, capsys):
+    frame = seq_copy / "rgb" / "000001.png"
+    before = frame.read_bytes()
+    code, err = _cli(capsys, "show", seq_copy, "--frame", "1", "--out", frame, "--overwrite")
+    assert code == 2 and f"is inside the input {seq_copy}; refusing to replace it" in err
+    assert frame.read_bytes() == before
+    new = seq_copy / "panel.png"  # a new file next to the inputs replaces nothing: allowed
+    assert _cli(capsys, "show", seq_copy, "--frame", "1", "--out", new)[0] == 0

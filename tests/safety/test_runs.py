@@ -1,0 +1,186 @@
+"""Run folders under concurrency and interruption: one writer at a time, stale ``running`` states
+read as ``interrupted``, SIGTERM handled like Ctrl-C, evaluation of what an interrupted run
+wrote (issue 12, cases 3 and 8)."""
+
+from __future__ import annotations
+
+import json
+import signal
+import socket
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from safety_helpers import QUICK_RUN, python_subprocess, wait_for
+
+from egs_bench.cli import main
+from egs_bench.errors import InputError, OutputError
+from egs_bench.eval.evaluate import evaluate_run
+from egs_bench.runs import folder as folder_mod
+from egs_bench.runs.folder import RunFolder
+
+
+def _cli(capsys, *argv: str | Path) -> tuple[int, str]:
+    code = main([str(a) for a in argv])
+    return code, capsys.readouterr().err
+
+
+def _status(run_dir: Path) -> dict:
+    path = run_dir / "status.json"
+    return json.loads(path.read_text()) if path.is_file() else {}
+
+
+def _start_slow_run(seq: Path, out: Path, cwd: Path):
+    """``egs-bench run`` in another process, kept busy in its initial mapping."""
+    argv = ["run", "--method", "monogs", "--seq", str(seq), "--out", str(out), *QUICK_RUN,
+            "--set", "init_iters=100000"]
+    proc = python_subprocess(f"import sys; from egs_bench.cli import main; "
+                             f"sys.exit(main({argv!r}))", cwd)
+    wait_for(lambda: _status(out).get("state") == "running", proc)
+    return proc
+
+
+def test_a_second_writer_is_refused_and_a_killed_run_reads_as_interrupted(
+        tmp_path, room_sequence, capsys):
+    out = tmp_path / "run"
+    proc = _start_slow_run(room_sequence, out, tmp_path)
+    try:
+        # case 3: a second run into the same folder while the first is running
+        code, err = _cli(capsys, "run", "--method", "monogs", "--seq", room_sequence, "--out",
+                         out, *QUICK_RUN, "--overwrite")
+        assert code == 2, err
+        assert f"is being written by another egs-bench process (pid {proc.pid} on " in err
+        code, err = _cli(capsys, "eval", out)
+        assert code == 3 and f"run is still running (pid {proc.pid} on " in err
+        # case 8: SIGKILL (no chance to clean up) leaves status.json at "running"
+        proc.send_signal(signal.SIGKILL)
+        proc.wait(30)
+    finally:
+        proc.kill()
+        proc.communicate()
+    assert _status(out)["state"] == "running"
+    status = RunFolder.open(out).read_status()
+    assert status.state == "interrupted" and "stopped without finishing" in status.reason
+    code, err = _cli(capsys, "eval", out)
+    assert code == 3 and "run was interrupted" in err
+    assert "before it wrote trajectory.txt: nothing to evaluate" in err
+    code, err = _cli(capsys, "run", "--method", "monogs", "--seq", room_sequence, "--out", out,
+                     *QUICK_RUN)
+    assert code == 2 and "already exists; pass --overwrite" in err
+    code, err = _cli(capsys, "run", "--method", "monogs", "--seq", room_sequence, "--out", out,
+                     *QUICK_RUN, "--overwrite")
+    assert code == 0, err
+    assert RunFolder.open(out).read_status().state == "done"
+
+
+def test_sigterm_marks_the_run_interrupted(tmp_path, room_sequence):
+    out = tmp_path / "run"
+    proc = _start_slow_run(room_sequence, out, tmp_path)
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 128 + signal.SIGTERM, err
+    assert "interrupted by SIGTERM" in err and "Traceback" not in err
+    status = RunFolder.open(out).read_status()
+    assert status.state == "interrupted" and status.reason == "interrupted by SIGTERM"
+    assert "INTERRUPTED: interrupted by SIGTERM" in (out / "log.txt").read_text()
+
+
+def test_interrupted_run_is_scored_on_what_it_wrote(done_run, tmp_path, room_sequence):
+    seq_frames = len(done_run.read_trajectory())
+    run = RunFolder.create(tmp_path / "partial", method="m", sequence_name="s",
+                           sequence_path=room_sequence)
+    traj = done_run.read_trajectory()
+    run.write_trajectory(traj.timestamps[:3], traj.poses[:3])
+    run.write_render(2, done_run.read_render(2))  # frame 0, which the protocol scores, is missing
+    run.mark_interrupted("interrupted by SIGTERM")
+    m = evaluate_run(run.path)
+    assert m["ate"]["n_matched"] == 3 and m["coverage"]["frames_processed"] == 3 < seq_frames
+    assert any("interrupted (interrupted by SIGTERM); metrics cover what it wrote" in n
+               for n in m["notes"])
+    assert m["rendering"] is None and any("lacks 1 of the renders" in n for n in m["notes"])
+
+
+def test_running_state_from_another_host_needs_a_recent_heartbeat(done_run):
+    now = time.time()
+
+    def write(heartbeat_age_s: float) -> None:
+        stamp = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime(now - heartbeat_age_s))
+        (done_run.path / "status.json").write_text(json.dumps({
+            "state": "running", "reason": None, "tracking_lost": False, "updated_utc": stamp,
+            "pid": 1, "host": socket.gethostname() + "-elsewhere", "heartbeat_utc": stamp}))
+
+    write(60)
+    assert done_run.read_status().state == "running"
+    write(folder_mod.STALE_AFTER_S + 60)
+    status = done_run.read_status()
+    assert status.state == "interrupted" and "no heartbeat from pid 1 on" in status.reason
+    with pytest.raises(InputError, match="still running"):
+        write(60)
+        evaluate_run(done_run.path)
+
+
+def test_heartbeat_refreshes_while_running_and_stops_at_the_end(tmp_path, tiny_sequence,
+                                                                 monkeypatch):
+    ticks = iter(f"2026-01-01T00:00:{s:02d}Z" for s in range(60))
+    monkeypatch.setattr(folder_mod, "HEARTBEAT_S", 0.02)
+    monkeypatch.setattr(folder_mod, "_now_utc", lambda: next(ticks))
+    run = RunFolder.create(tmp_path / "r", method="m", sequence_name="s",
+                           sequence_path=tiny_sequence)
+    first = _status(run.path)["heartbeat_utc"]
+    deadline = time.monotonic() + 10
+    while _status(run.path)["heartbeat_utc"] == first and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert _status(run.path)["heartbeat_utc"] != first
+    assert _status(run.path)["updated_utc"] == first  # the state did not change
+    run.mark_done()
+    assert f"heartbeat {run.path}" not in {t.name for t in threading.enumerate()}
+    assert _status(run.path)["state"] == "done"
+
+
+def test_library_create_is_locked_too(tmp_path, tiny_sequence):
+    first = RunFolder.create(tmp_path / "r", method="m", sequence_name="s",
+                             sequence_path=tiny_sequence)
+    with pytest.raises(OutputError, match=r"is being written by another egs-bench process "
+                                          r"\(pid \d+ on "):
+        RunFolder.create(tmp_path / "r", method="m", sequence_name="s",
+                         sequence_path=tiny_sequence, overwrite=True)
+    first.mark_failed("test")
+    with pytest.raises(OutputError, match="already exists; pass --overwrite"):
+        RunFolder.create(tmp_path / "r", method="m", sequence_name="s",
+                         sequence_path=tiny_sequence)
+    again = RunFolder.create(tmp_path / "r", method="m", sequence_name="s",
+                             sequence_path=tiny_sequence, overwrite=True)
+    assert again.read_status().state == "running"
+    again.mark_done()
+
+
+def test_max_frames_zero_and_an_event_method_without_events_are_refused(
+        seq_copy, tmp_path, capsys):
+    code, err = _cli(capsys, "run", "--method", "monogs", "--seq", seq_copy, "--out",
+                     tmp_path / "r0", "--max-frames", "0", "--quiet")
+    assert code == 2 and "Invalid value for '--max-frames'" in err
+    assert "greater than or equal to 1" in err and not (tmp_path / "r0").exists()
+    meta = seq_copy / "meta.yaml"
+    meta.write_text(meta.read_text().replace("has_events: true", "has_events: false"))
+    code, err = _cli(capsys, "run", "--method", "egs", "--seq", seq_copy, "--out",
+                     tmp_path / "r1", *QUICK_RUN)
+    assert code == 3, err
+    assert (f"{meta}: has_events is false, but the method uses events (event_tracking, "
+            "event_mapping)") in err
+    assert not (tmp_path / "r1").exists()
+
+
+def test_user_methods_without_overwrite_support_are_told_so(tmp_path, tiny_sequence, capsys,
+                                                             monkeypatch):
+    (tmp_path / "plain_method.py").write_text(
+        "class M:\n    name = 'plain'\n    description = 'no overwrite'\n"
+        "    def run(self, sequence, out, *, preset, device, seed, max_frames, progress):\n"
+        "        raise AssertionError('must not run')\n"
+        "METHOD = M()\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    code, err = _cli(capsys, "run", "--method", "plain_method:METHOD", "--seq", tiny_sequence,
+                     "--out", tmp_path / "r", "--overwrite")
+    assert code == 2 and "does not support --overwrite" in err
+    assert np.all([not (tmp_path / "r").exists()])
