@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from egs_bench.errors import InputError
-from egs_bench.runs.folder import RunFolder, find_runs
 from egs_bench.geometry import pose_from_tq
+from egs_bench.runs.folder import RunFolder, find_runs
 
 
 def _poses(n: int) -> np.ndarray:
