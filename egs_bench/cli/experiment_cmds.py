@@ -1,0 +1,67 @@
+"""CLI commands of experiments at scale: ``sweep``, ``paper-tables``, ``regress``, ``figure``.
+
+Thin wrappers over :mod:`egs_bench.experiments`.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+from rich.console import Console
+
+from egs_bench.cli.app import app
+
+_out = Console(highlight=False, soft_wrap=True)
+
+
+@app.command("sweep")
+def sweep_cmd(
+    sweep_file: Path = typer.Argument(..., help="Sweep file (YAML): methods, sequences, seeds, "
+                                                "presets, devices, overrides, backends."),
+    out: Path | None = typer.Option(None, "--out", "-o",
+                                    help="Output folder (default: the file's 'out', else "
+                                         "sweeps/<file stem>)."),
+    backend: str = typer.Option("local", "--backend", "-b",
+                                help="local (process pool) or slurm (submitit job array)."),
+    shard: str | None = typer.Option(None, "--shard",
+                                     help="Run only shard i of N (i/N, 0 <= i < N), for "
+                                          "several machines without a scheduler."),
+    jobs: int | None = typer.Option(None, "--jobs", "-j",
+                                    help="Parallel runs of the local pool (default: one per "
+                                         "GPU for CUDA runs, else from the CPU budget)."),
+    threads_per_job: int | None = typer.Option(None, "--threads-per-job",
+                                               help="CPU threads of each run (default: the "
+                                                    "budget divided by the jobs)."),
+    options: list[str] = typer.Option([], "--set",
+                                      help="SLAM option override for every run, KEY=VALUE "
+                                           "(repeatable; part of each run's configuration)."),
+    force: bool = typer.Option(False, "--force",
+                               help="Rerun finished and stale runs (replaces the run folders "
+                                    "this sweep created)."),
+    retry_failed: bool = typer.Option(False, "--retry-failed", help="Rerun failed runs."),
+    dry_run: bool = typer.Option(False, "--dry-run", help="List what would run; run nothing."),
+    status: bool = typer.Option(False, "--status",
+                                help="Only print the summary of the run folders as they are."),
+    no_wait: bool = typer.Option(False, "--no-wait",
+                                 help="slurm: return after submitting (check later with "
+                                      "--status)."),
+    cluster: str = typer.Option("slurm", "--cluster",
+                                help="submitit cluster of the slurm backend: slurm, or local / "
+                                     "debug to try the backend on this machine."),
+) -> None:
+    """Run (or resume) a sweep: methods x sequences x seeds x settings, one process per run."""
+    from egs_bench.experiments.spec import load_sweep, parse_shard
+    from egs_bench.experiments.sweep import run_sweep
+    from egs_bench.slam.config import parse_overrides
+
+    spec = load_sweep(sweep_file)
+    report = run_sweep(spec, out=out, extra_options=parse_overrides(options), backend=backend,
+                       shard=parse_shard(shard), force=force, retry_failed=retry_failed,
+                       jobs=jobs, threads_per_job=threads_per_job, cluster=cluster,
+                       wait=not no_wait, dry_run=dry_run, status_only=status,
+                       say=lambda m: _out.print(m, markup=False))
+    typer.echo(report.summary_md, nl=False)
+    _out.print(f"summary: {report.out / 'sweep_summary.md'} (and .csv)")
+    if not (dry_run or status or no_wait) and not report.all_done:
+        raise typer.Exit(1)
