@@ -65,3 +65,50 @@ def sweep_cmd(
     _out.print(f"summary: {report.out / 'sweep_summary.md'} (and .csv)")
     if not (dry_run or status or no_wait) and not report.all_done:
         raise typer.Exit(1)
+
+
+@app.command("regress")
+def regress_cmd(
+    baseline: Path = typer.Argument(..., help="Baseline: a summary CSV (`leaderboard --format "
+                                              "csv-summary`) or a runs folder."),
+    runs: Path = typer.Argument(..., help="Runs to check: a runs folder (or a summary CSV)."),
+    tolerances: Path | None = typer.Option(None, "--tolerances", "-t",
+                                           help="YAML: metric -> {abs, rel} in stored units "
+                                                "(ATE metres); null disables a metric."),
+    metrics: str | None = typer.Option(None, "--metrics",
+                                       help="Comma-separated metrics to check (default: those "
+                                            "with a tolerance: ate, psnr, ssim, lpips)."),
+    protocol: str = typer.Option("egs", "--protocol", "-p", help="Evaluation protocol."),
+    update: bool = typer.Option(False, "--update",
+                                help="Write the summary of RUNS to BASELINE instead of "
+                                     "checking (refreshes a committed baseline)."),
+    output: Path | None = typer.Option(None, "--output", "-o",
+                                       help="Also write the regression table as CSV."),
+) -> None:
+    """Compare runs with a baseline, metric by metric (direction-aware tolerances); exit 1 on a
+    regression or a missing result."""
+    from egs_bench.experiments.outputs import check_file_target
+    from egs_bench.experiments.regress import (
+        compare,
+        failed,
+        load_tolerances,
+        render,
+        summary_of,
+        update_baseline,
+    )
+    from egs_bench.fileio import write_text_atomic
+
+    if output is not None:
+        check_file_target(output)
+    if update:
+        df = update_baseline(runs, baseline, protocol)
+        _out.print(f"wrote {baseline} ({len(df)} rows from {runs})")
+        return
+    keys = [m.strip() for m in metrics.split(",") if m.strip()] if metrics else None
+    table = compare(summary_of(baseline, protocol), summary_of(runs, protocol),
+                    load_tolerances(tolerances), keys)
+    typer.echo(render(table), nl=False)
+    if output is not None:
+        write_text_atomic(output, table.to_csv(index=False, lineterminator="\n"))
+    if failed(table):
+        raise typer.Exit(1)
