@@ -112,3 +112,46 @@ def regress_cmd(
         write_text_atomic(output, table.to_csv(index=False, lineterminator="\n"))
     if failed(table):
         raise typer.Exit(1)
+
+
+@app.command("paper-tables")
+def paper_tables_cmd(
+    sweep_dir: Path = typer.Argument(..., help="A sweep folder (its runs/) or any runs folder."),
+    out: Path | None = typer.Option(None, "--out", "-o",
+                                    help="Folder for the tables (default SWEEP_DIR/tables)."),
+    tables: str = typer.Option("ate,rendering,ablation_events,ablation_crf,edi", "--tables",
+                               help="Comma-separated tables to make (those the runs can fill)."),
+    protocol: str = typer.Option("egs", "--protocol", "-p", help="Evaluation protocol."),
+    width: str = typer.Option("auto", "--width",
+                              help="LaTeX width: auto, natural, column or page (table*)."),
+    label_prefix: str = typer.Option("tab:", "--label-prefix",
+                                     help="LaTeX labels are <prefix><table name>."),
+    check: bool = typer.Option(False, "--check",
+                               help="Compile tables.tex with pdflatex and report overfull "
+                                    "tables (needs pdflatex)."),
+    overwrite: bool = typer.Option(False, "--overwrite", help="Replace existing table files."),
+) -> None:
+    """The paper's table layouts (ATE, rendering, event and CRF ablations, EDI) as LaTeX and
+    Markdown, with mean ± std over seeds."""
+    from egs_bench.experiments.paper_tables import build_tables, render_markdown, write_tables
+
+    made, skipped = build_tables(sweep_dir, protocol,
+                                 tables=[t.strip() for t in tables.split(",") if t.strip()])
+    target = out or Path(sweep_dir) / "tables"
+    paths = write_tables(made, target, label_prefix=label_prefix, width=width,
+                         overwrite=overwrite)
+    for table in made.values():
+        typer.echo(render_markdown(table))
+    for line in skipped:
+        _out.print(line, markup=False)
+    _out.print(f"wrote {len(paths)} files to {target} (compile {target / 'tables.tex'} to "
+               "check)", markup=False)
+    if check:
+        from egs_bench.experiments.latex_check import compile_latex
+
+        log = compile_latex([(target / f"{n}.tex").read_text() for n in made],
+                            target / "check")
+        overfull = log.count("Overfull \\hbox")
+        _out.print(f"pdflatex: compiled; {overfull} overfull box(es)", markup=False)
+        if overfull:
+            raise typer.Exit(1)

@@ -2,8 +2,9 @@
 
 A *row* is a method with one set of settings (the run's configuration without its seed), and
 whether its runs cover their whole sequences: runs that stop early are never mixed or ranked
-with complete ones. A *cell* is a row on one sequence and holds every run of it (the seeds);
-its statistics are the mean, the sample standard deviation and the number of evaluated runs.
+with complete ones (they form ``[partial]`` rows). A *cell* is a row on one sequence and holds
+every run of it (the seeds); its statistics are the mean, the sample standard deviation and the
+number of evaluated runs.
 
 When a method was run with several settings, each row is labelled with the configuration keys
 that differ between them (``egs (lambda_d=0.05)``), or with the name a sweep gave the settings.
@@ -173,7 +174,7 @@ def cell_notes(row: RowKey, sequence: str, cell: Cell | None) -> list[str]:
         elif r.status in ("broken", "not_evaluated"):
             notes.append(f"{MISSING}: {who}: {r.reason}")
         elif r.status == "incomplete":
-            notes.append(f"{who}: {r.reason}; not ranked")
+            notes.append(f"{who}: {r.reason}; never ranked against complete runs")
     if cell.evaluated and len(cell.evaluated) < len(cell.runs):
         notes.append(f"{what}: mean over {len(cell.evaluated)} of {len(cell.runs)} runs")
     seeds = Counter(r.seed for r in cell.runs if r.seed is not None)

@@ -7,7 +7,8 @@ the average over sequences (given only when a row has every sequence), like the 
 GS-SLAM papers; ``by="method"`` puts sequences in rows. The best mean of each comparison is bold
 and the second underlined, in the metric's direction (lower is better for ATE and LPIPS), ranked
 on the displayed rounded values, ties sharing a rank. Runs that cover fewer frames than their
-sequence form their own ``[partial]`` rows that are never ranked. Missing, failed or unreadable
+sequence form their own ``[partial]`` rows that never compete with complete rows (only among
+themselves, in a column without complete values). Missing, failed or unreadable
 runs show ``--``, runs that lost tracking ``L``, and a footnote says why: a bad run folder
 never stops the table.
 
@@ -86,6 +87,14 @@ class Leaderboard:
         cell = self.cells.get((row, sequence))
         return MISSING if cell is None else cell.marker
 
+    def average(self, row: RowKey, key: str) -> Stat | None:
+        """Mean over the sequences of a row's means (``None`` unless it has every sequence);
+        a derived value (``n == 0``: no spread, no count)."""
+        stats = [self.stat(row, s, key) for s in self.sequences]
+        if not stats or any(s is None for s in stats):
+            return None
+        return Stat(float(np.mean([s.mean for s in stats])), math.nan, 0)
+
 
 def _check_metrics(metrics: Seq[str]) -> None:
     for key in metrics:
@@ -134,13 +143,6 @@ class TableData:
     ranked: pd.Series
 
 
-def _average(board: Leaderboard, row: RowKey, key: str) -> Stat | None:
-    stats = [board.stat(row, s, key) for s in board.sequences]
-    if not stats or any(s is None for s in stats):
-        return None
-    return Stat(float(np.mean([s.mean for s in stats])), math.nan, 1)
-
-
 def to_frame(board: Leaderboard, by: str = "sequence") -> TableData:
     """Lay out ``board``: ``by="sequence"`` rows are methods (labels), groups are sequences plus
     ``Avg.``; ``by="method"`` rows are sequences plus ``Avg.``, groups are methods."""
@@ -163,7 +165,7 @@ def to_frame(board: Leaderboard, by: str = "sequence") -> TableData:
         for s in seq_groups:
             for k in board.metrics:
                 if s == AVERAGE:
-                    st, mk = _average(board, row, k), MISSING
+                    st, mk = board.average(row, k), MISSING
                 else:
                     st, mk = board.stat(row, s, k), board.marker(row, s) or MISSING
                 at = (row.label, (s, k)) if by == "sequence" else (s, (row.label, k))
@@ -177,29 +179,33 @@ def to_frame(board: Leaderboard, by: str = "sequence") -> TableData:
 
 
 def _ranks(data: TableData, by: str) -> pd.DataFrame:
-    """1 best, 2 second, 0 otherwise, comparing the ranked rows/groups only."""
+    """1 best, 2 second, 0 otherwise; partial rows never compete with complete ones."""
     mean = data.mean.copy()
     ranks = pd.DataFrame(0, index=mean.index, columns=mean.columns, dtype=int)
     if by == "sequence":  # rows are methods: rank down each column
-        mean.loc[~data.ranked.reindex(mean.index).to_numpy()] = math.nan
+        full = data.ranked.reindex(mean.index).to_numpy()
         for col in mean.columns:
-            ranks[col] = dense_ranks(mean[col], col[1])
+            ranks[col] = dense_ranks(_competing(mean[col], full), col[1])
     else:  # methods are column groups: rank across the groups, per row and metric
-        for col in mean.columns:
-            if not data.ranked[col[0]]:
-                mean[col] = math.nan
         for row in mean.index:
             for key in mean.columns.get_level_values(1).unique():
                 cols = [c for c in mean.columns if c[1] == key]
-                ranks.loc[row, cols] = dense_ranks(mean.loc[row, cols], key).to_numpy()
+                full = np.array([bool(data.ranked[c[0]]) for c in cols])
+                values = _competing(mean.loc[row, cols], full)
+                ranks.loc[row, cols] = dense_ranks(values, key).to_numpy()
     return ranks
+
+
+def _competing(values: pd.Series, complete: np.ndarray) -> pd.Series:
+    """Values that compete for a rank: complete rows' only, unless none has a value (then the
+    partial rows compete among themselves)."""
+    full = values.where(complete)
+    return full if full.notna().any() else values
 
 
 def _cells(data: TableData, by: str, style: str) -> tuple[pd.DataFrame, int]:
     ranks = _ranks(data, by)
-    plain = [c for c in data.n.columns if c[0] != AVERAGE]
-    usual = common_n(data.n.loc[[r for r in data.n.index if r != AVERAGE], plain]
-                     .to_numpy().ravel())
+    usual = common_n(data.n.to_numpy().ravel())
     out = pd.DataFrame("", index=data.mean.index, columns=data.mean.columns, dtype=object)
     for col in data.mean.columns:
         for row in data.mean.index:
@@ -207,11 +213,8 @@ def _cells(data: TableData, by: str, style: str) -> tuple[pd.DataFrame, int]:
             if math.isnan(v):
                 out.loc[row, col] = data.marker.loc[row, col]
                 continue
-            nn = int(data.n.loc[row, col])
-            is_avg = AVERAGE in (row, col[0])
-            stat = Stat(float(v), float(data.std.loc[row, col]), nn)
-            out.loc[row, col] = format_stat(stat, col[1], int(ranks.loc[row, col]), style,
-                                            nn if is_avg else usual)
+            stat = Stat(float(v), float(data.std.loc[row, col]), int(data.n.loc[row, col]))
+            out.loc[row, col] = format_stat(stat, col[1], int(ranks.loc[row, col]), style, usual)
     return out, usual
 
 

@@ -87,6 +87,7 @@ METRICS: dict[str, MetricSpec] = {
     "ssim": MetricSpec("ssim", "ssim", "SSIM", 1.0, True, 3),
     "lpips": MetricSpec("lpips", "lpips", "LPIPS", 1.0, False, 3),
     "fps": MetricSpec("fps", "fps", "FPS", 1.0, True, 2),
+    "render_fps": MetricSpec("render_fps", "render_fps", "Render FPS", 1.0, True, 1),
 }
 DEFAULT_METRICS = ("ate", "psnr", "ssim", "lpips")
 
@@ -202,6 +203,7 @@ def metric_values(metrics: Mapping[str, Any], where: Path) -> dict[str, float]:
         "ssim": _number(metrics.get("rendering"), "ssim", where),
         "lpips": _number(metrics.get("rendering"), "lpips", where),
         "fps": _number(metrics.get("speed"), "fps", where),
+        "render_fps": _number(metrics.get("speed"), "render_fps", where),
     }
     return {k: v for k, v in out.items() if v is not None}
 

@@ -47,7 +47,8 @@ def common_n(counts_per_cell: Iterable[int]) -> int:
 
 def format_stat(stat: Stat, key: str, rank: int, style: str, usual_n: int) -> str:
     """One cell: the mean (bold for rank 1, underlined for rank 2), ``+- std`` for n >= 2 and
-    ``(n=k)`` when k differs from ``usual_n``. ``style`` is ``"md"`` or ``"latex"``."""
+    ``(n=k)`` when k differs from ``usual_n``; ``n == 0`` marks a derived value (an average
+    over sequences) that shows neither. ``style`` is ``"md"`` or ``"latex"``."""
     spec = METRICS[key]
     d = spec.decimals
     text = f"{stat.mean * spec.scale:.{d}f}"
@@ -55,14 +56,14 @@ def format_stat(stat: Stat, key: str, rank: int, style: str, usual_n: int) -> st
         text = f"**{text}**" if rank == 1 else (f"<u>{text}</u>" if rank == 2 else text)
         if stat.n >= 2:
             text += f" ± {stat.std * spec.scale:.{d}f}"
-        if stat.n != usual_n:
+        if stat.n and stat.n != usual_n:
             text += f" (n={stat.n})"
         return text
     text = rf"\textbf{{{text}}}" if rank == 1 else (rf"\underline{{{text}}}" if rank == 2
                                                      else text)
     if stat.n >= 2:
         text += rf"\,{{\scriptsize$\pm${stat.std * spec.scale:.{d}f}}}"
-    if stat.n != usual_n:
+    if stat.n and stat.n != usual_n:
         text += rf"\,{{\scriptsize($n$={stat.n})}}"
     return text
 

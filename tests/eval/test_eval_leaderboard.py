@@ -125,7 +125,8 @@ def test_leaderboard_settings_rows_and_partial_runs_never_ranked(tmp_path) -> No
     assert rows["egs (lambda_d=0.05)"][0] == "<u>3.00</u>"
     assert rows["monogs [partial]"][0] == "0.10"  # best number, no bold
     assert rows["monogs"][0] == "5.00"
-    assert "monogs [partial] on s1: covers 6 of 40 frames; not ranked" in md
+    assert "monogs [partial] on s1: covers 6 of 40 frames; never ranked against complete " \
+        "runs" in md
     order = [line.split("|")[1].strip() for line in md.splitlines()
              if line.startswith("| ") and "Method" not in line]
     assert order[-1] == "monogs [partial]"  # partial rows come last
