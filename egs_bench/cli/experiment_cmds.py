@@ -155,3 +155,56 @@ def paper_tables_cmd(
         _out.print(f"pdflatex: compiled; {overfull} overfull box(es)", markup=False)
         if overfull:
             raise typer.Exit(1)
+
+
+def _crops(values: list[str]) -> list[tuple[int, int, int, int]]:
+    from egs_bench.errors import ConfigError
+
+    out = []
+    for v in values:
+        parts = v.split(",")
+        if len(parts) != 4 or not all(p.strip().lstrip("-").isdigit() for p in parts):
+            raise ConfigError(f"--crop must be x,y,w,h in pixels, got {v!r}")
+        x, y, w, h = (int(p) for p in parts)
+        out.append((x, y, w, h))
+    return out
+
+
+@app.command("figure")
+def figure_cmd(
+    kind: str = typer.Argument(..., help="trajectories (several methods on one plot) or "
+                                         "qualitative (renders side by side, zoomed crops, "
+                                         "PSNR)."),
+    run_dirs: list[Path] = typer.Argument(..., help="Run folders of one sequence."),
+    output: Path = typer.Option(..., "--output", "-o", help="Figure file: .pdf, .svg or .png."),
+    frames: str = typer.Option("0", "--frames", help="qualitative: comma-separated frames."),
+    crop: list[str] = typer.Option([], "--crop",
+                                   help="qualitative: zoom box x,y,w,h in pixels "
+                                        "(repeatable, up to 4)."),
+    label: list[str] = typer.Option([], "--label",
+                                    help="Legend/column label per run (default: the method)."),
+    protocol: str = typer.Option("egs", "--protocol", "-p",
+                                 help="ATE settings and reference images of this protocol."),
+    overwrite: bool = typer.Option(False, "--overwrite", help="Replace an existing figure."),
+) -> None:
+    """Comparison figures across methods on one sequence."""
+    from egs_bench.errors import ConfigError
+    from egs_bench.eval.figures import qualitative_figure, trajectory_figure
+    from egs_bench.experiments.outputs import check_file_target
+
+    check_file_target(output, overwrite)
+    if label and len(label) != len(run_dirs):
+        raise ConfigError(f"--label given {len(label)} times for {len(run_dirs)} run folders")
+    if kind == "trajectories":
+        path = trajectory_figure(run_dirs, output, protocol, label or None)
+    elif kind == "qualitative":
+        try:
+            picked = [int(f) for f in frames.split(",") if f.strip()]
+        except ValueError:
+            raise ConfigError(f"--frames must be comma-separated integers, got {frames!r}") \
+                from None
+        path = qualitative_figure(run_dirs, output, picked, _crops(crop), protocol,
+                                  label or None)
+    else:
+        raise ConfigError(f"unknown figure {kind!r}: choose trajectories or qualitative")
+    _out.print(f"wrote {path}", markup=False)
