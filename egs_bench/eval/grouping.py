@@ -173,8 +173,10 @@ def cell_notes(row: RowKey, sequence: str, cell: Cell | None) -> list[str]:
             notes.append(f"{MISSING}: {who} is not finished ({r.reason})")
         elif r.status in ("broken", "not_evaluated"):
             notes.append(f"{MISSING}: {who}: {r.reason}")
-        elif r.status == "incomplete":
-            notes.append(f"{who}: {r.reason}; never ranked against complete runs")
+    partial = Counter(r.reason for r in cell.runs if r.status == "incomplete")
+    for reason, count in partial.items():
+        runs = f" ({count} runs)" if count > 1 else ""
+        notes.append(f"{what}: {reason}{runs}; never ranked against complete runs")
     if cell.evaluated and len(cell.evaluated) < len(cell.runs):
         notes.append(f"{what}: mean over {len(cell.evaluated)} of {len(cell.runs)} runs")
     seeds = Counter(r.seed for r in cell.runs if r.seed is not None)

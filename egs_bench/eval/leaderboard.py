@@ -288,7 +288,8 @@ def summary_frame(board: Leaderboard) -> pd.DataFrame:
     in stored units (``ate_rmse_m_mean``, ``ate_rmse_m_std``, ...)."""
     rows = []
     for row in board.rows:
-        settings = row.label[len(row.method):].strip()
+        settings = row.label[len(row.method):].removesuffix(" [partial]").strip()
+        settings = settings[1:-1] if settings.startswith("(") else settings
         for s in board.sequences:
             cell = board.cells.get((row, s))
             if cell is None:

@@ -122,7 +122,7 @@ class PaperTable:
 def _cell_text(table: PaperTable, r: int, c: int, ranks: dict, style: str) -> str:
     v = table.values[r][c]
     if v is None:
-        return table.markers[r][c] or MISSING
+        return table.markers[r][c]
     return format_stat(v, table.key_at(r, c), ranks.get((r, c), 0), style, table.usual_n)
 
 
@@ -214,7 +214,7 @@ def _value(board: Leaderboard, row: RowKey, seq: str, key: str) -> tuple[Stat | 
     if seq == "Avg.":
         st = board.average(row, key)
         return st, "" if st else MISSING
-    return board.stat(row, seq, key), board.marker(row, seq)
+    return board.stat(row, seq, key), board.marker(row, seq) or MISSING
 
 
 def _matrix(board: Leaderboard, rows: Sequence[RowKey], stubs: list[list[str]],

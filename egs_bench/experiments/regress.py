@@ -1,6 +1,7 @@
 """Regression check: compare the results of runs with a committed baseline, metric by metric.
 
-Both sides are reduced to one row per (method, settings, sequence) with the mean over the runs
+Both sides are reduced to one row per (method, settings, sequence, whether the runs cover the
+whole sequence) with the mean over the runs
 (the ``csv-summary`` leaderboard format, :func:`egs_bench.eval.leaderboard.summary_frame`), read
 from a runs folder or from such a CSV file. For every metric with a tolerance, the change is
 measured in the metric's bad direction (ATE and LPIPS up, PSNR and SSIM down) and is a
@@ -28,7 +29,7 @@ from egs_bench.eval.protocols import DEFAULT_PROTOCOL
 from egs_bench.eval.results import METRICS
 from egs_bench.fileio import write_text_atomic
 
-KEY = ["method", "settings", "sequence"]
+KEY = ["method", "settings", "sequence", "complete"]
 VERDICTS = ("ok", "better", "REGRESSION", "missing", "new")
 
 
@@ -109,6 +110,8 @@ def summary_of(source: str | Path, protocol: str = DEFAULT_PROTOCOL,
     except (pd.errors.ParserError, UnicodeDecodeError, pd.errors.EmptyDataError) as exc:
         raise InputError(source, f"not a CSV file ({exc})") from None
     missing = [c for c in [*KEY, "status"] if c not in df.columns]
+    if not missing and df["complete"].dtype != bool:
+        missing = ["complete (True/False)"]
     if missing:
         raise InputError(source, f"not a results summary (no column {missing[0]!r}; write one "
                                  "with `egs-bench leaderboard RUNS --format csv-summary`)")
