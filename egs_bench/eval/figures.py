@@ -62,7 +62,7 @@ def plot_trajectories(results: Sequence[tuple[str, AteResult]], path: str | Path
                 label=f"{label} (ATE {100 * ate.rmse:.2f} cm)", zorder=2)
     # ground truth last and dashed: stays visible where an estimate lies on it
     ax.plot(gt[:, a], gt[:, b], "--", color="black", lw=1.2, label="ground truth", zorder=3)
-    ax.plot(gt[0, a], gt[0, b], "o", color="black", ms=4, zorder=3)
+    ax.plot(gt[0, a], gt[0, b], "o", color="black", ms=4, zorder=3, label="start")
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_xlabel(f"{names[a]} [m]")
     ax.set_ylabel(f"{names[b]} [m]")
@@ -135,7 +135,8 @@ def plot_comparison_grid(rows: Sequence[Sequence[Panel]], path: str | Path, *,
     strip_h = strips[0][0].shape[0] + _GAP if crops else 0
     total_h = h + strip_h
     scale = 2.6 / w
-    fig = Figure(figsize=(n_cols * w * scale + 0.4, len(rows) * (total_h * scale + 0.45)))
+    fig = Figure(figsize=(n_cols * w * scale + 0.4, len(rows) * (total_h * scale + 0.5)),
+                 layout="constrained")
     axes = fig.subplots(len(rows), n_cols, squeeze=False)
     for r, row in enumerate(rows):
         ref = row[reference_index].image if reference_index is not None else None
@@ -161,7 +162,6 @@ def plot_comparison_grid(rows: Sequence[Sequence[Panel]], path: str | Path, *,
                 ax.set_ylabel(row_labels[r], fontsize=8)
     if title:
         fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
     return save_figure(fig, Path(path))
 
 
