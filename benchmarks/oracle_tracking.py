@@ -18,7 +18,6 @@ import argparse
 from pathlib import Path
 
 import numpy as np
-import torch
 
 import egs_bench.slam.system as slam_system
 from egs_bench.eval.evaluate import evaluate_run
@@ -37,15 +36,15 @@ def install_oracle(seq) -> None:
         raise SystemExit(f"{seq.path}: no groundtruth_dense.txt, cannot place exposure starts")
     track = slam_system.track_frame
 
-    def gt_w2c(t_us: int, like: torch.Tensor) -> torch.Tensor:
+    def gt_w2c(t_us: int) -> np.ndarray:
         wc = interpolate_trajectory(dense.timestamps, dense.poses, np.array([t_us * 1e-6]))[0]
-        return torch.tensor(invert_pose(wc), dtype=like.dtype, device=like.device)
+        return invert_pose(wc)
 
     def oracle(gmap, crf, obs, init, *args, **kwargs):
         result = track(gmap, crf, obs, init, *args, **kwargs)
         t0, t1 = seq.exposure(obs.index)
-        pose1 = gt_w2c(t1, init.pose1_cw)
-        pose0 = gt_w2c(t0, init.pose1_cw) if obs.fractions.numel() > 1 else pose1
+        pose1 = gt_w2c(t1)
+        pose0 = gt_w2c(t0) if len(obs.fractions) > 1 else pose1.copy()
         result.state = FrameState(obs.index, pose0, pose1, result.state.exp_a,
                                   result.state.exp_b)
         return result

@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
-SHARED = REPO_ROOT.parent / "shared"
+SHARED = Path(os.environ.get("EGS_BENCH_SHARED", REPO_ROOT.parent / "shared"))
 os.environ.setdefault("NUMBA_CACHE_DIR", str(REPO_ROOT / ".cache" / "numba"))
 os.environ.setdefault("MPLBACKEND", "Agg")
 # torch's and numba's OpenMP pools otherwise spin-wait and steal each other's 2 cores

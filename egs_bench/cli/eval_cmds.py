@@ -1,4 +1,5 @@
-"""CLI commands of the evaluation area: eval, ate, compare-images, leaderboard, plot, import-run.
+"""CLI commands of the evaluation area: eval, ate, rpe, compare-images, leaderboard, plot,
+import-run.
 
 Thin wrappers: each parses its options and calls a library function in ``egs_bench.eval``.
 """
@@ -40,31 +41,98 @@ def eval_cmd(
                   _fmt(rnd.get("ssim"), 3), _fmt(rnd.get("lpips"), 3),
                   str(rnd.get("n_frames", "--")), _fmt(spd.get("fps"), 2))
     _out.print(table)
+    for key, label in (("per_frame", "per frame"), ("per_metre", "per metre")):
+        rpe = (m.get("rpe") or {}).get(key) or {}
+        if rpe.get("translation"):
+            _out.print(f"RPE {label}: {100 * rpe['translation']['rmse']:.3f} cm, "
+                       f"{rpe['rotation']['rmse']:.3f} deg (RMSE over "
+                       f"{rpe['translation']['n_pairs']} pairs)")
     for note in m["notes"]:
         _out.print(f"note: {note}")
     _out.print(f"wrote {Path(run_dir) / 'metrics.json'}")
 
 
-@app.command("ate")
-def ate_cmd(
-    estimate: Path = typer.Argument(..., help="Estimated trajectory, TUM format."),
-    groundtruth: Path = typer.Argument(..., help="Ground-truth trajectory, TUM format."),
-    align: str = typer.Option("se3", "--align", "-a", help="Alignment: se3, sim3 or none."),
-    max_diff: float = typer.Option(0.01, "--max-diff",
-                                   help="Timestamp association tolerance in seconds."),
-) -> None:
-    """ATE (translation, after alignment) of two TUM files, computed with evo."""
-    from egs_bench.eval.ate import ate_from_files
+def _roles(first: Path, second: Path, est_first: bool, command: str) -> tuple[Path, Path]:
+    """(ground truth, estimate) from the two file arguments, refusing names that say the
+    roles are swapped (see :func:`egs_bench.eval.ate.check_argument_order`)."""
+    from egs_bench.eval.ate import check_argument_order
 
-    r = ate_from_files(estimate, groundtruth, align=align, max_diff_s=max_diff)
-    table = Table(title=f"ATE ({r.alignment} alignment, {r.n_matched} poses matched within "
-                        f"{r.max_diff_s} s)")
+    gt, est = (second, first) if est_first else (first, second)
+    hint = "or drop --est-first" if est_first else "or pass --est-first for the old EST GT order"
+    check_argument_order(gt, est, command=f"egs-bench {command}", swap_hint=hint)
+    return gt, est
+
+
+def _print_stats(title: str, unit: str, r) -> None:  # noqa: ANN001 (AteResult | RpeResult)
+    """One-row table of the error statistics of an ATE or RPE result, and the Sim(3) scale."""
+    table = Table(title=title)
     for col in ("rmse", "mean", "median", "std", "min", "max"):
-        table.add_column(f"{col} (m)", justify="right")
+        table.add_column(f"{col} ({unit})", justify="right")
     table.add_row(*(f"{v:.6f}" for v in (r.rmse, r.mean, r.median, r.std, r.min, r.max)))
     _out.print(table)
     if r.alignment == "sim3":
         _out.print(f"scale: {r.scale:.6f}")
+
+
+_EST_FIRST = typer.Option(False, "--est-first",
+                          help="The files are given as EST GT (egs-bench's former order) "
+                               "instead of GT EST.")
+
+
+@app.command("ate")
+def ate_cmd(
+    groundtruth: Path = typer.Argument(..., help="Ground-truth (reference) trajectory, TUM."),
+    estimate: Path = typer.Argument(..., help="Estimated trajectory, TUM format."),
+    align: str = typer.Option("se3", "--align", "-a", help="Alignment: se3, sim3 or none."),
+    max_diff: float = typer.Option(0.01, "--max-diff",
+                                   help="Timestamp association tolerance in seconds."),
+    est_first: bool = _EST_FIRST,
+) -> None:
+    """ATE (translation, after alignment) of two TUM files, computed with evo.
+
+    Files in evo's order: `egs-bench ate GT EST` = `evo_ape tum GT EST -a`.
+    """
+    from egs_bench.eval.ate import ate_from_files
+
+    gt, est = _roles(groundtruth, estimate, est_first, "ate")
+    r = ate_from_files(est, gt, align=align, max_diff_s=max_diff)
+    _print_stats(f"ATE ({r.alignment} alignment, {r.n_matched} poses matched within "
+                 f"{r.max_diff_s} s)\nreference {gt}\nestimate  {est}", "m", r)
+
+
+@app.command("rpe")
+def rpe_cmd(
+    groundtruth: Path = typer.Argument(..., help="Ground-truth (reference) trajectory, TUM."),
+    estimate: Path = typer.Argument(..., help="Estimated trajectory, TUM format."),
+    relation: str = typer.Option("trans_part", "--pose-relation", "-r",
+                                 help="trans_part (m), angle_deg, angle_rad, rot_part, full, "
+                                      "point_distance (evo_rpe's -r)."),
+    delta: float = typer.Option(1.0, "--delta", "-d", help="Pair spacing, in --delta-unit."),
+    delta_unit: str = typer.Option("f", "--delta-unit", "-u",
+                                   help="f (frames), m (metres of path), d / r (degrees / "
+                                        "radians of rotation)."),
+    all_pairs: bool = typer.Option(False, "--all-pairs",
+                                   help="All pairs delta apart instead of consecutive pairs."),
+    align: str = typer.Option("none", "--align", "-a",
+                              help="Alignment: none (evo_rpe's default), se3 or sim3."),
+    max_diff: float = typer.Option(0.01, "--max-diff",
+                                   help="Timestamp association tolerance in seconds."),
+    est_first: bool = _EST_FIRST,
+) -> None:
+    """RPE (relative pose error) of two TUM files, computed with evo.
+
+    `egs-bench rpe GT EST -r angle_deg -d 1 -u m` = `evo_rpe tum GT EST -r angle_deg -d 1 -u m`.
+    """
+    from egs_bench.eval.rpe import rpe_from_files
+
+    gt, est = _roles(groundtruth, estimate, est_first, "rpe")
+    r = rpe_from_files(est, gt, relation=relation, delta=delta, delta_unit=delta_unit,
+                       all_pairs=all_pairs, align=align, max_diff_s=max_diff)
+    pairs = "all pairs" if r.all_pairs else "consecutive pairs"
+    aligned = "no" if r.alignment == "none" else r.alignment
+    _print_stats(f"RPE {r.relation} for delta {r.delta:g} {r.delta_unit} ({pairs}, "
+                 f"{r.n_pairs} pairs of {r.n_matched} matched poses, {aligned} "
+                 f"alignment)\nreference {gt}\nestimate  {est}", r.unit, r)
 
 
 @app.command("compare-images")

@@ -1,4 +1,5 @@
-"""CLI commands of the render area: render a saved Gaussian map, make the demo render."""
+"""CLI commands of the render area: render or export a saved Gaussian map, make the demo
+render."""
 
 from __future__ import annotations
 
@@ -23,28 +24,71 @@ def _parse_pose(text: str) -> np.ndarray:
 
 @app.command("render-map")
 def render_map(
-    ply: Path = typer.Argument(..., help="Gaussian map as a 3DGS .ply (e.g. saved by a run)."),
-    out: Path = typer.Option(..., "--out", "-o", help="Output PNG (8-bit sRGB)."),
+    source: Path = typer.Argument(..., help="A run folder (map.ply + appearance.json + "
+                                            "trajectory) or a 3DGS .ply."),
+    out: Path = typer.Option(..., "--out", "-o", help="Output PNG (8-bit)."),
+    frame: int = typer.Option(None, "--frame", "-f",
+                              help="Render at the run's estimated pose of this frame."),
     pose: str = typer.Option(
         None, "--pose",
         help="Camera-to-world pose 'tx ty tz qx qy qz qw' (TUM order). Default: frame the map.",
     ),
-    width: int = typer.Option(640, help="Image width in pixels."),
-    height: int = typer.Option(480, help="Image height in pixels."),
-    fov: float = typer.Option(60.0, help="Horizontal field of view in degrees (square pixels)."),
+    appearance: Path = typer.Option(None, "--appearance",
+                                    help="appearance.json of a run (CRF, camera, exposure) "
+                                         "for a .ply source; default: the run folder's own."),
+    exposure: bool = typer.Option(False, "--exposure",
+                                  help="Apply the frame's exposure compensation (brightness "
+                                       "of the observed frame; the run's renders do not)."),
+    colors: str = typer.Option("auto", "--colors",
+                               help="Without an appearance file: auto (from the file), linear "
+                                    "(sRGB-encode) or display (as stored)."),
+    width: int = typer.Option(None, help="Image width in pixels [default: the run's camera, "
+                                         "else 640]."),
+    height: int = typer.Option(None, help="Image height in pixels [default: the run's "
+                                          "camera, else 480]."),
+    fov: float = typer.Option(None, help="Horizontal field of view in degrees, square pixels "
+                                         "[default: the run's camera, else 60]."),
     backend: str = typer.Option("auto", help="Rasteriser backend: auto, numba, gsplat."),
 ) -> None:
-    """Render a saved Gaussian map from one camera into a PNG."""
+    """Render a saved Gaussian map from one camera into a PNG (a run's map as the run did)."""
+    from egs_bench.fileio import atomic_path
     from egs_bench.geometry import Intrinsics
-    from egs_bench.render.demo import render_map_png
-    from egs_bench.render.gaussian_map import GaussianMap
+    from egs_bench.slam.map_export import open_map, render_map_view
 
-    gmap = GaussianMap.load_ply(ply)
-    f = 0.5 * width / np.tan(np.radians(fov) / 2)
-    intr = Intrinsics(f, f, width / 2, height / 2, width, height)
-    render_map_png(gmap, out, _parse_pose(pose) if pose else None,
-                   intr if pose else None, width, height, backend)
-    typer.echo(f"rendered {len(gmap)} Gaussians -> {out}")
+    src = open_map(source, appearance)
+    camera = None
+    if src.appearance is None or any(v is not None for v in (width, height, fov)):
+        w, h = width or 640, height or 480
+        f = 0.5 * w / np.tan(np.radians(fov or 60.0) / 2)
+        camera = Intrinsics(f, f, w / 2, h / 2, w, h)
+    img, what = render_map_view(src, frame=frame, pose=_parse_pose(pose) if pose else None,
+                                camera=camera, exposure=exposure, colors=colors,
+                                backend=backend)
+    import imageio.v3 as iio
+
+    with atomic_path(out) as tmp:
+        iio.imwrite(tmp, img, extension=".png")
+    for note in src.notes:
+        typer.echo(f"note: {note}")
+    typer.echo(f"rendered {len(src.gmap)} Gaussians ({what}) -> {out}")
+
+
+@app.command("export-map")
+def export_map(
+    source: Path = typer.Argument(..., help="A run folder, or a run's map.ply with "
+                                            "--appearance."),
+    out: Path = typer.Option(..., "--out", "-o", help="Output .ply (display-space 3DGS)."),
+    appearance: Path = typer.Option(None, "--appearance",
+                                    help="The run's appearance.json (for a .ply source)."),
+    overwrite: bool = typer.Option(False, "--overwrite", help="Replace an existing OUT."),
+) -> None:
+    """Export a run's map as a standard display-space 3DGS .ply (INRIA loader, gsplat,
+    viewers): colours through the run's CRF, SH degree 3 with zero f_rest_*."""
+    from egs_bench.slam.map_export import export_display_ply, open_map
+
+    src = open_map(source, appearance)
+    export_display_ply(src, out, overwrite=overwrite)
+    typer.echo(f"exported {len(src.gmap)} Gaussians (display colours, SH degree 3) -> {out}")
 
 
 @app.command("render-demo")

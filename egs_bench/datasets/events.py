@@ -173,6 +173,7 @@ class EventStream:
         validate: bool = True,
     ) -> None:
         import h5py
+        import hdf5plugin  # noqa: F401 (registers Blosc, Zstd, LZ4, ...: DSEC-style files use them)
 
         self.path = Path(path)
         self.width, self.height = int(width), int(height)
@@ -187,8 +188,7 @@ class EventStream:
         except KeyError as exc:
             raise InputError(self.path, f"missing HDF5 dataset ({exc})") from None
         except OSError as exc:
-            raise InputError(self.path, f"cannot read HDF5 file, truncated or corrupt ({exc})") \
-                from None
+            raise _read_error(self.path, getattr(self, "_file", None), exc) from None
         n = len(self._t)
         if not (len(self._x) == len(self._y) == len(self._p) == n):
             raise InputError(self.path, "events/x, y, t, p have different lengths")
@@ -228,8 +228,7 @@ class EventStream:
                 prev_t = t[-1]
             self._validate_ms_to_idx()
         except OSError as exc:
-            raise InputError(self.path, f"cannot read HDF5 data, truncated or corrupt ({exc})") \
-                from None
+            raise _read_error(self.path, self._file, exc) from None
 
     def _validate_ms_to_idx(self) -> None:
         m = self.ms_to_idx
@@ -304,6 +303,36 @@ class EventStream:
 
     def close(self) -> None:
         self._file.close()
+
+
+#: HDF5 filter ids of the compressors event files use (registered ids, hdfgroup.org)
+_FILTER_NAMES = {32001: "Blosc", 32004: "LZ4", 32008: "Bitshuffle", 32015: "Zstd",
+                 32026: "Blosc2", 307: "bzip2"}
+
+
+def _read_error(path: Path, file, exc: OSError) -> InputError:
+    """The one-line error for an HDF5 read failure: a compression filter this installation
+    lacks is named as such (HDF5 itself only says it cannot open its plugin directory)."""
+    import h5py
+
+    missing: set[str] = set()
+    if file is not None:
+        def visit(_name: str, obj) -> None:
+            if isinstance(obj, h5py.Dataset):
+                plist = obj.id.get_create_plist()
+                for i in range(plist.get_nfilters()):
+                    fid = int(plist.get_filter(i)[0])
+                    if not h5py.h5z.filter_avail(fid):
+                        missing.add(f"{_FILTER_NAMES.get(fid, 'unregistered')} (id {fid})")
+        try:
+            file.visititems(visit)
+        except (OSError, RuntimeError):
+            pass
+    if missing:
+        return InputError(path, f"needs the HDF5 compression filter {', '.join(sorted(missing))}, "
+                                "which this installation lacks (hdf5plugin provides "
+                                "Blosc, Blosc2, Zstd, LZ4, Bitshuffle and bzip2)")
+    return InputError(path, f"cannot read HDF5 data, truncated or corrupt ({exc})")
 
 
 def accumulate_event_maps(events: Events, edges_us: np.ndarray, height: int, width: int

@@ -6,6 +6,7 @@ association tolerance, because the same evo functions are called in the same ord
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -77,6 +78,52 @@ def _to_evo(traj: Trajectory):  # -> evo.core.trajectory.PoseTrajectory3D
     return PoseTrajectory3D(poses_se3=list(traj.poses), timestamps=np.asarray(traj.timestamps))
 
 
+def check_alignment(align: str) -> None:
+    """Raise :class:`ConfigError` unless ``align`` is one of :data:`ALIGNMENTS`."""
+    if align not in ALIGNMENTS:
+        raise ConfigError(f"unknown alignment {align!r}; choose one of {', '.join(ALIGNMENTS)}")
+
+
+def associate(est: Trajectory, gt: Trajectory, *, align: str = "se3",
+              max_diff_s: float = DEFAULT_MAX_DIFF_S, est_name: str | Path = "estimate",
+              gt_name: str | Path = "ground truth", what: str = "ATE"):
+    """Validate two trajectories and associate them by nearest timestamp, as ``evo_ape`` and
+    ``evo_rpe`` do (``evo.core.sync.associate_trajectories``).
+
+    Returns:
+        ``(ref, est)`` evo ``PoseTrajectory3D`` copies holding only the associated pose pairs.
+
+    Raises:
+        ConfigError: unknown ``align``.
+        InputError: non-finite poses, fewer than 3 poses, no timestamp overlap or fewer than 3
+            associated poses (``what`` names the metric in the message).
+    """
+    from evo.core import sync
+
+    check_alignment(align)
+    for traj, name in ((est, est_name), (gt, gt_name)):
+        if not np.isfinite(traj.poses).all() or not np.isfinite(traj.timestamps).all():
+            bad = int(np.argmax(~np.isfinite(traj.poses).reshape(len(traj), -1).all(axis=1)))
+            raise InputError(name, f"NaN or infinite value in pose {bad}")
+        if len(traj) < MIN_MATCHED_POSES:
+            raise InputError(name, f"holds {len(traj)} poses, at least {MIN_MATCHED_POSES} needed "
+                                   f"for {what}")
+    ref_evo, est_evo = _to_evo(gt), _to_evo(est)
+    try:
+        ref_evo, est_evo = sync.associate_trajectories(ref_evo, est_evo, max_diff=max_diff_s)
+    except sync.SyncException:
+        raise InputError(
+            est_name,
+            f"no timestamp overlap with {gt_name} within {max_diff_s} s (estimate spans "
+            f"{est.timestamps[0]:.3f}..{est.timestamps[-1]:.3f} s, ground truth "
+            f"{gt.timestamps[0]:.3f}..{gt.timestamps[-1]:.3f} s)",
+        ) from None
+    if est_evo.num_poses < MIN_MATCHED_POSES:
+        raise InputError(est_name, f"only {est_evo.num_poses} poses match {gt_name} within "
+                                   f"{max_diff_s} s, at least {MIN_MATCHED_POSES} needed")
+    return ref_evo, est_evo
+
+
 def compute_ate(
     est: Trajectory,
     gt: Trajectory,
@@ -101,31 +148,11 @@ def compute_ate(
         InputError: non-finite poses, no timestamp overlap, fewer than 3 associated poses or a
             degenerate (e.g. collinear) trajectory that cannot be aligned.
     """
-    from evo.core import metrics, sync
+    from evo.core import metrics
     from evo.core.geometry import GeometryException
 
-    if align not in ALIGNMENTS:
-        raise ConfigError(f"unknown alignment {align!r}; choose one of {', '.join(ALIGNMENTS)}")
-    for traj, name in ((est, est_name), (gt, gt_name)):
-        if not np.isfinite(traj.poses).all() or not np.isfinite(traj.timestamps).all():
-            bad = int(np.argmax(~np.isfinite(traj.poses).reshape(len(traj), -1).all(axis=1)))
-            raise InputError(name, f"NaN or infinite value in pose {bad}")
-        if len(traj) < MIN_MATCHED_POSES:
-            raise InputError(name, f"holds {len(traj)} poses, at least {MIN_MATCHED_POSES} needed "
-                                   "for ATE")
-    ref_evo, est_evo = _to_evo(gt), _to_evo(est)
-    try:
-        ref_evo, est_evo = sync.associate_trajectories(ref_evo, est_evo, max_diff=max_diff_s)
-    except sync.SyncException:
-        raise InputError(
-            est_name,
-            f"no timestamp overlap with {gt_name} within {max_diff_s} s (estimate spans "
-            f"{est.timestamps[0]:.3f}..{est.timestamps[-1]:.3f} s, ground truth "
-            f"{gt.timestamps[0]:.3f}..{gt.timestamps[-1]:.3f} s)",
-        ) from None
-    if est_evo.num_poses < MIN_MATCHED_POSES:
-        raise InputError(est_name, f"only {est_evo.num_poses} poses match {gt_name} within "
-                                   f"{max_diff_s} s, at least {MIN_MATCHED_POSES} needed")
+    ref_evo, est_evo = associate(est, gt, align=align, max_diff_s=max_diff_s,
+                                 est_name=est_name, gt_name=gt_name, what="ATE")
     rotation, translation, scale = np.eye(3), np.zeros(3), 1.0
     if align != "none":
         try:
@@ -167,3 +194,49 @@ def ate_from_files(
     gt = read_tum(gt_path)
     return compute_ate(est, gt, align=align, max_diff_s=max_diff_s, est_name=est_path,
                        gt_name=gt_path)
+
+
+_GT_NAME = re.compile(r"ground[_\-]?truth|(^|[^a-z0-9])gt([^a-z0-9]|$)", re.IGNORECASE)
+_EST_NAMES = ("cameratrajectory", "keyframetrajectory", "stamped_traj_estimate", "trj_final")
+
+
+def file_role_hint(path: str | Path) -> str | None:
+    """``"groundtruth"``, ``"estimate"`` or ``None``: what a trajectory file's name and place say
+    it is.
+
+    Ground truth: a name containing ``groundtruth`` / ``ground_truth`` or the token ``gt``
+    (TUM's and egs-bench's ``groundtruth.txt``, RampVO's ``stamped_groundtruth.txt``). Estimate:
+    a run folder's ``trajectory.txt``, a name containing ``estimate``, or the file names
+    ORB-SLAM2/3, Photo-SLAM, RampVO and MonoGS write (``CameraTrajectory*``,
+    ``KeyFrameTrajectory*``, ``stamped_traj_estimate``, ``trj_final``).
+    """
+    from egs_bench.runs.folder import TRAJECTORY_FILE, RunFolder
+
+    path = Path(path)
+    name = path.name.lower()
+    is_gt = bool(_GT_NAME.search(path.stem))
+    is_est = ("estimate" in name or any(name.startswith(n) for n in _EST_NAMES)
+              or (path.name == TRAJECTORY_FILE and RunFolder.is_run_folder(path.parent)))
+    if is_gt == is_est:
+        return None
+    return "groundtruth" if is_gt else "estimate"
+
+
+def check_argument_order(gt_path: str | Path, est_path: str | Path, *, command: str,
+                         swap_hint: str) -> None:
+    """Refuse file arguments whose names say they are swapped (``GT`` named like an estimate or
+    ``EST`` named like ground truth), so that the old ``EST GT`` order never gives different
+    (Sim(3)) numbers silently.
+
+    Raises:
+        ConfigError: the names indicate swapped roles; the message says how to proceed.
+    """
+    gt_hint, est_hint = file_role_hint(gt_path), file_role_hint(est_path)
+    if gt_hint == "estimate" or est_hint == "groundtruth":
+        why = []
+        if gt_hint == "estimate":
+            why.append(f"the ground truth {gt_path} looks like an estimate")
+        if est_hint == "groundtruth":
+            why.append(f"the estimate {est_path} looks like ground truth")
+        raise ConfigError(f"{command} takes GT EST (evo's order), but {' and '.join(why)}: "
+                          f"swap them ({swap_hint})")

@@ -72,6 +72,19 @@ def evaluate_ate(run: RunFolder, protocol: Protocol, seq=None) -> dict[str, Any]
     return summary
 
 
+def evaluate_rpe(run: RunFolder, protocol: Protocol, seq=None) -> dict[str, Any]:
+    """RPE of the run's whole estimated trajectory (per frame and per metre, translation and
+    rotation; :func:`~egs_bench.eval.rpe.standard_rpe`): the summary stored in
+    ``metrics.json``."""
+    from egs_bench.eval.rpe import standard_rpe
+
+    gt, gt_name = _ground_truth(run, seq)
+    out = standard_rpe(run.read_trajectory(), gt, max_diff_s=protocol.ate_max_diff_s,
+                       est_name=run.trajectory_path, gt_name=gt_name)
+    out["frames"] = protocol.rpe_frames
+    return out
+
+
 def compute_run_ate(run: RunFolder, protocol: Protocol, seq=None):  # -> AteResult
     """The :class:`~egs_bench.eval.ate.AteResult` of a run under ``protocol``."""
     est = run.read_trajectory()
@@ -202,6 +215,7 @@ def evaluate_run(run_dir: str | Path, protocol: str | Protocol = DEFAULT_PROTOCO
     notes: list[str] = []
 
     ate = evaluate_ate(run, proto, seq)
+    rpe = evaluate_rpe(run, proto, seq)
     rendering = None
     coverage = None
     if seq is not None:
@@ -216,6 +230,9 @@ def evaluate_run(run_dir: str | Path, protocol: str | Protocol = DEFAULT_PROTOCO
                          "images")
     elif not run.render_indices():
         notes.append("no renders in the run folder: rendering metrics not computed")
+    elif proto.reference_images == "sharp" and not seq.has_sharp:
+        notes.append("image metrics unavailable: the sequence has no sharp ground truth (a real "
+                     "recording); ATE only")
     else:
         rendering = evaluate_renders(run, proto, seq, coverage["frames_processed"],
                                      progress=progress)
@@ -230,6 +247,7 @@ def evaluate_run(run_dir: str | Path, protocol: str | Protocol = DEFAULT_PROTOCO
         "protocol": proto.to_dict(),
         "tools": _tool_versions(),
         "ate": ate,
+        "rpe": rpe,
         "rendering": rendering,
         "speed": speed,
         "coverage": coverage,

@@ -21,7 +21,9 @@ class Protocol:
         description: one line for tables and reports.
         ate_frames: ``"all"`` tracked frames or ``"keyframes"`` only.
         ate_alignment: ``"se3"``, ``"sim3"`` or ``"none"`` (Umeyama, evo).
-        ate_max_diff_s: timestamp association tolerance, seconds.
+        ate_max_diff_s: timestamp association tolerance, seconds (ATE and RPE).
+        rpe_frames: poses the RPE uses: ``"all"`` estimated poses (RPE per frame and per metre,
+            translation and rotation, no alignment; :func:`egs_bench.eval.rpe.standard_rpe`).
         render_stride: score renders of frames ``0, stride, 2 stride, ...``.
         render_skip_keyframes: leave keyframes out of the rendering evaluation.
         reference_images: ``"sharp"`` (sharp ground truth at exposure end) or ``"rgb"`` (the
@@ -36,6 +38,7 @@ class Protocol:
     ate_frames: str = "all"
     ate_alignment: str = "se3"
     ate_max_diff_s: float = 0.01
+    rpe_frames: str = "all"
     render_stride: int = 5
     render_skip_keyframes: bool = False
     reference_images: str = "sharp"

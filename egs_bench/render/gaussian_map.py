@@ -202,7 +202,7 @@ class GaussianMap:
         n_keep = int(math.ceil(valid.size / downsample)) if valid.size else 0
         if n_keep == 0:
             return 0
-        perm = torch.randperm(valid.size, generator=generator)[:n_keep].numpy()
+        perm = torch.randperm(valid.size, generator=generator, device="cpu")[:n_keep].numpy()
         idx = np.sort(valid[perm])
         pts_cam = intrinsics.backproject(dep).reshape(-1, 3)[idx]
         pose = np.asarray(T_wc, dtype=np.float64)

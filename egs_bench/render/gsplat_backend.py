@@ -70,9 +70,11 @@ def rasterize_gsplat(
     height: int,
     near_plane: float,
     far_plane: float,
-) -> tuple[torch.Tensor, ...]:
+    visibility: bool = True,
+) -> tuple[torch.Tensor | None, ...]:
     """gsplat rendering; returns rgb [C,H,W,3], depth [C,H,W], alpha [C,H,W], visibility
-    [C,N], radii [C,N] int32, means2d [C,N,2], depths [C,N] (see :class:`RasterResult`)."""
+    [C,N] (None unless ``visibility``), radii [C,N] int32, means2d [C,N,2], depths [C,N]
+    (see :class:`RasterResult`)."""
     gsplat = _import_gsplat()
     if means.device.type != "cuda":
         raise ConfigError("backend 'gsplat' needs CUDA tensors (use backend='numba' on the CPU)")
@@ -86,6 +88,6 @@ def rasterize_gsplat(
     radii = meta["radii"]
     if radii.dim() == 3:  # gsplat >= 1.5: per-axis radii [C,N,2]
         radii = radii.amax(-1)
-    visibility = touched_visibility(meta, C, N, width, height)
-    return (renders[..., :3], renders[..., 3], alphas[..., 0], visibility,
+    vis = touched_visibility(meta, C, N, width, height) if visibility else None
+    return (renders[..., :3], renders[..., 3], alphas[..., 0], vis,
             radii.to(torch.int32), meta["means2d"], meta["depths"])

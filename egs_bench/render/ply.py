@@ -1,21 +1,27 @@
 """Save/load a :class:`GaussianMap` as a standard 3DGS ``.ply`` (binary little endian).
 
-Vertex properties, in the order the 3DGS reference code writes them (so common viewers such as
-SuperSplat or the antimatter15 web viewer open the file): ``x y z nx ny nz f_dc_0 f_dc_1 f_dc_2
-opacity scale_0 scale_1 scale_2 rot_0 rot_1 rot_2 rot_3``.
+Vertex properties, in the order the 3DGS reference code writes them (so the INRIA loader,
+gsplat's ``load_ply_to_splats`` and common viewers such as SuperSplat open the file): ``x y z
+nx ny nz f_dc_0 f_dc_1 f_dc_2 [f_rest_0 .. f_rest_{3((d+1)^2-1)-1}] opacity scale_0 scale_1
+scale_2 rot_0 rot_1 rot_2 rot_3``, all float32.
 
 * ``opacity`` is the logit, ``scale_*`` the log standard deviations, ``rot_*`` the quaternion
   ``(w, x, y, z)``: the same raw parameters as the map.
-* Colour: the map's **linear** RGB is stored as the degree-0 spherical-harmonic coefficient with
-  the standard convention ``rgb = 0.5 + C0 * f_dc``, ``C0 = 0.28209479177387814``. Viewers show
-  those values as display RGB, so an HDR/linear map looks darker than an sRGB one; values above
-  1 are kept in the file and clipped by viewers.
-* There are no ``f_rest_*`` properties (SH degree 0). On load, higher-order SH are ignored.
+* Colour is the degree-0 spherical-harmonic coefficient with the standard convention
+  ``rgb = 0.5 + C0 * f_dc``, ``C0 = 0.28209479177387814``. A header comment
+  ``egs-bench colors=linear|display`` says what the colours are: ``linear`` (the SLAM map's HDR
+  radiance, may exceed 1; a run's ``map.ply``) or ``display`` (LDR values in [0, 1] that viewers
+  show as they are; :func:`egs_bench.slam.map_export.export_display_ply`). Maps written before
+  the comment existed are linear.
+* ``sh_degree`` 0 (the SLAM map) writes no ``f_rest_*``; degree ``d > 0`` writes
+  ``3((d+1)^2 - 1)`` zero coefficients in the INRIA channel-major order (the INRIA loader
+  asserts exactly 45 for its default degree 3). On load, higher-order SH are ignored.
 * ``keyframe_ids`` are not stored (they are -1 after loading).
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -31,6 +37,31 @@ SH_C0 = 0.28209479177387814
 
 _FIELDS = (["x", "y", "z", "nx", "ny", "nz", "f_dc_0", "f_dc_1", "f_dc_2", "opacity"]
            + [f"scale_{i}" for i in range(3)] + [f"rot_{i}" for i in range(4)])
+COLOR_SPACES = ("linear", "display")
+_COLOR_TAG = "egs-bench colors="
+
+
+@dataclass(frozen=True)
+class PlyInfo:
+    """What a 3DGS ``.ply`` says about itself besides the Gaussians.
+
+    Attributes:
+        color_space: ``"linear"`` or ``"display"`` from the ``egs-bench colors=`` header
+            comment, or ``None`` when the file has none (older egs-bench maps: linear; files
+            from other 3DGS code: display).
+        n_rest: number of ``f_rest_*`` properties (ignored on load).
+        sh_degree: SH degree ``d`` with ``3((d+1)^2 - 1) = n_rest``, or ``None`` if none fits.
+    """
+
+    color_space: str | None
+    n_rest: int
+    sh_degree: int | None
+
+
+def field_names(sh_degree: int = 0) -> list[str]:
+    """Vertex property names of a 3DGS ``.ply`` of SH degree ``sh_degree``, in file order."""
+    n_rest = 3 * ((sh_degree + 1) ** 2 - 1)
+    return _FIELDS[:9] + [f"f_rest_{i}" for i in range(n_rest)] + _FIELDS[9:]
 
 
 def rgb_to_sh0(rgb: np.ndarray) -> np.ndarray:
@@ -43,26 +74,53 @@ def sh0_to_rgb(f_dc: np.ndarray) -> np.ndarray:
     return f_dc * SH_C0 + 0.5
 
 
-def save_ply(gmap: GaussianMap, path: str | Path) -> None:
-    """Write ``gmap`` to ``path`` atomically as a float32 3DGS ``.ply``."""
+def save_ply(gmap: GaussianMap, path: str | Path, *, sh_degree: int = 0,
+             color_space: str = "linear") -> None:
+    """Write ``gmap`` to ``path`` atomically as a float32 3DGS ``.ply``.
+
+    Args:
+        sh_degree: SH degree of the file; the ``f_rest_*`` coefficients are zero (the map's
+            colour does not depend on the viewing direction).
+        color_space: what ``gmap.colors`` hold, ``"linear"`` or ``"display"`` (written as a
+            header comment, see the module docstring).
+    """
+    if color_space not in COLOR_SPACES:
+        raise ValueError(f"color_space must be one of {COLOR_SPACES}, got {color_space!r}")
+    if sh_degree < 0:
+        raise ValueError(f"sh_degree must be >= 0, got {sh_degree}")
     n = len(gmap)
+    names = field_names(sh_degree)
 
     def a(t: torch.Tensor) -> np.ndarray:
         return t.detach().cpu().to(torch.float64).numpy().reshape(n, -1)
 
+    n_rest = len(names) - len(_FIELDS)
     cols = np.concatenate(
-        [a(gmap.means), np.zeros((n, 3)), rgb_to_sh0(a(gmap.colors)), a(gmap.opacity_logits),
-         a(gmap.log_scales), a(gmap.quats)], axis=1,
+        [a(gmap.means), np.zeros((n, 3)), rgb_to_sh0(a(gmap.colors)), np.zeros((n, n_rest)),
+         a(gmap.opacity_logits), a(gmap.log_scales), a(gmap.quats)], axis=1,
     ).astype(np.float32)
-    vertex = np.empty(n, dtype=[(f, "<f4") for f in _FIELDS])
-    for i, f in enumerate(_FIELDS):
+    vertex = np.empty(n, dtype=[(f, "<f4") for f in names])
+    for i, f in enumerate(names):
         vertex[f] = cols[:, i]
+    ply = PlyData([PlyElement.describe(vertex, "vertex")], byte_order="<",
+                  comments=[f"{_COLOR_TAG}{color_space}"])
     with atomic_path(path) as tmp:
-        PlyData([PlyElement.describe(vertex, "vertex")], byte_order="<").write(str(tmp))
+        ply.write(str(tmp))
 
 
 def load_ply(path: str | Path, dtype: torch.dtype = torch.float32) -> GaussianMap:
     """Read a 3DGS ``.ply``; raises :class:`InputError` naming the file if it is not one."""
+    return read_ply(path, dtype)[0]
+
+
+def read_ply(path: str | Path, dtype: torch.dtype = torch.float32
+             ) -> tuple[GaussianMap, PlyInfo]:
+    """Read a 3DGS ``.ply`` and what its header says (:class:`PlyInfo`).
+
+    Raises:
+        InputError: missing or unreadable file, no ``vertex`` element, missing properties,
+            non-finite values, or an unknown ``egs-bench colors=`` tag.
+    """
     path = Path(path)
     if not path.is_file():
         raise InputError(path, "no such file")
@@ -92,4 +150,13 @@ def load_ply(path: str | Path, dtype: torch.dtype = torch.float32) -> GaussianMa
     )
     if not all(torch.isfinite(t).all() for t in gmap.parameters().values()):
         raise InputError(path, "non-finite values in Gaussian parameters")
-    return gmap
+    space = None
+    for comment in ply.comments:
+        if comment.startswith(_COLOR_TAG):
+            space = comment[len(_COLOR_TAG):].strip()
+            if space not in COLOR_SPACES:
+                raise InputError(path, f"unknown colour space {space!r} in the header comment "
+                                       f"(expected one of {', '.join(COLOR_SPACES)})")
+    n_rest = sum(1 for f in names if f.startswith("f_rest_"))
+    degree = next((d for d in range(8) if 3 * ((d + 1) ** 2 - 1) == n_rest), None)
+    return gmap, PlyInfo(space, n_rest, degree)

@@ -29,7 +29,8 @@ class RasterResult:
         alpha: [C, H, W] accumulated opacity ``1 - T_final`` (differentiable, as gsplat's
             ``render_alphas``; detach it when using it as a weight or a mask).
         visibility: [C, N] bool, True where the Gaussian contributed to at least one pixel
-            while the transmittance right after it was above 0.5 (MonoGS's "touched").
+            while the transmittance right after it was above 0.5 (MonoGS's "touched"); None
+            when not requested (``visibility=False``): on gsplat it costs a second pass.
         radii: [C, N] int32 screen radius in pixels (``ceil`` of the larger half extent of
             the ``alpha >= 1/255`` box), 0 where culled or off the image.
         means2d: [C, N, 2] projected centres in pixels (differentiable; call
@@ -41,7 +42,7 @@ class RasterResult:
     depth: torch.Tensor
     expected_depth: torch.Tensor
     alpha: torch.Tensor
-    visibility: torch.Tensor
+    visibility: torch.Tensor | None
     radii: torch.Tensor
     means2d: torch.Tensor
     depths: torch.Tensor
@@ -111,6 +112,7 @@ def rasterize(
     far_plane: float = RC.FAR_PLANE,
     backgrounds: torch.Tensor | None = None,
     backend: Backend = "auto",
+    visibility: bool = True,
 ) -> RasterResult:
     """Render N 3-D Gaussians into C pinhole cameras, differentiably.
 
@@ -134,6 +136,8 @@ def rasterize(
         backgrounds: [C, 3] colour behind the Gaussians, or None (black).
         backend: "auto" (CUDA tensors -> "gsplat", CPU -> "numba"), "numba" (CPU tile
             kernels), "reference" (dense PyTorch oracle, tiny images only) or "gsplat".
+        visibility: return which Gaussians each camera "touched" (keyframe decisions need
+            it; the optimisation loops pass False: on gsplat it is a second pass).
 
     Returns:
         A :class:`RasterResult`.
@@ -154,9 +158,9 @@ def rasterize(
     if name == "gsplat":
         from egs_bench.render.gsplat_backend import rasterize_gsplat
 
-        rgb, depth, alpha, visibility, radii, means2d, depths = rasterize_gsplat(
+        rgb, depth, alpha, vis, radii, means2d, depths = rasterize_gsplat(
             means, quats, scales, opacities, colors, viewmats, Ks, width, height,
-            near_plane, far_plane,
+            near_plane, far_plane, visibility,
         )
     else:
         proj = project_gaussians(
@@ -165,12 +169,13 @@ def rasterize(
         if name == "reference":
             from egs_bench.render.reference import composite_dense
 
-            rgb, depth, alpha, visibility = composite_dense(proj, opacities, colors, width, height)
+            rgb, depth, alpha, vis = composite_dense(proj, opacities, colors, width, height)
         else:
             from egs_bench.render.numba_backend import composite_tiles
 
-            rgb, depth, alpha, visibility = composite_tiles(proj, opacities, colors, width, height)
+            rgb, depth, alpha, vis = composite_tiles(proj, opacities, colors, width, height)
         radii, means2d, depths = proj.radii, proj.means2d, proj.depths
+        vis = vis if visibility else None
     if backgrounds is not None:
         if backgrounds.shape != (viewmats.shape[0], 3):
             raise ConfigError(
@@ -180,4 +185,4 @@ def rasterize(
         rgb = rgb + (1 - alpha)[..., None] * backgrounds[:, None, None, :].to(rgb.dtype)
     # alpha is kept in the graph; the clamp bounds the gradient 1/alpha^2 at nearly empty pixels
     expected = torch.where(alpha > 1e-10, depth / alpha.clamp(min=1e-4), torch.zeros_like(depth))
-    return RasterResult(rgb, depth, expected, alpha, visibility, radii, means2d, depths)
+    return RasterResult(rgb, depth, expected, alpha, vis, radii, means2d, depths)

@@ -13,6 +13,8 @@ differentiable monotone piecewise-linear curve with learnable knots.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 import torch
 from torch import nn
@@ -46,6 +48,11 @@ class CameraResponse(nn.Module):
     def inverse(self, ldr: torch.Tensor) -> torch.Tensor:  # pragma: no cover - interface
         raise NotImplementedError
 
+    def frozen(self) -> Callable[[torch.Tensor], torch.Tensor]:
+        """The response with its parameters fixed (differentiable in the input only), for
+        loops that do not optimise it (tracking). Parameter-free responses return themselves."""
+        return self
+
 
 class IdentityCRF(CameraResponse):
     """No response: the map's colours live directly in the LDR image space (MonoGS, no-CRF)."""
@@ -76,7 +83,8 @@ class LeakyPiecewiseLinearCRF(CameraResponse):
         init: ``"srgb"`` (nodes on the sRGB curve) or ``"linear"`` (identity on [0, 1]).
     """
 
-    def __init__(self, n_nodes: int = 16, alpha: float = 0.01, init: str = "linear") -> None:
+    def __init__(self, n_nodes: int = 16, alpha: float = 0.01, init: str = "linear",
+                 device: str | torch.device = "cpu") -> None:
         super().__init__()
         if n_nodes < 2:
             raise ConfigError(f"CRF needs at least 2 control nodes, got {n_nodes}")
@@ -90,8 +98,9 @@ class LeakyPiecewiseLinearCRF(CameraResponse):
             raise ConfigError(f"unknown CRF init {init!r} (use 'srgb' or 'linear')")
         gaps = np.maximum(np.diff(hdr), 1e-6)
         gaps = gaps / gaps.sum()
-        self.gap_logits = nn.Parameter(torch.tensor(np.log(gaps), dtype=torch.float32))
-        self.register_buffer("levels", torch.tensor(levels, dtype=torch.float32))
+        self.gap_logits = nn.Parameter(torch.tensor(np.log(gaps), dtype=torch.float32,
+                                                    device=device))
+        self.register_buffer("levels", torch.tensor(levels, dtype=torch.float32, device=device))
 
     def nodes(self) -> torch.Tensor:
         """HDR inputs of the control nodes [N], strictly increasing from 0 to 1."""
@@ -100,6 +109,9 @@ class LeakyPiecewiseLinearCRF(CameraResponse):
     def forward(self, hdr: torch.Tensor) -> torch.Tensor:
         """LDR values, same shape as ``hdr``."""
         return leaky_piecewise_linear(hdr, self.nodes(), self.levels, self.alpha)
+
+    def frozen(self) -> FrozenLeakyCurve:
+        return FrozenLeakyCurve(self.nodes().detach(), self.levels, self.alpha)
 
     @torch.no_grad()
     def inverse(self, ldr: torch.Tensor) -> torch.Tensor:
@@ -114,6 +126,26 @@ class LeakyPiecewiseLinearCRF(CameraResponse):
         high_arg = (1 + self.alpha - ldr).clamp_min(1e-6)
         high = (self.alpha / high_arg) ** 2
         return torch.where(ldr < 0, low, torch.where(ldr > 1, high, mid))
+
+
+class FrozenLeakyCurve:
+    """:func:`leaky_piecewise_linear` with fixed nodes: per-segment slopes and intercepts are
+    computed once, so a call is a bucket search, two gathers and the two leaky ends."""
+
+    def __init__(self, nodes: torch.Tensor, levels: torch.Tensor, alpha: float) -> None:
+        x, y = nodes.detach(), levels.to(nodes.dtype)
+        self.inner = x[1:-1].contiguous()  # segment j covers [x_j, x_{j+1})
+        self.slope = (y[1:] - y[:-1]) / (x[1:] - x[:-1])
+        self.intercept = y[:-1] - x[:-1] * self.slope
+        self.alpha = float(alpha)
+
+    def __call__(self, hdr: torch.Tensor) -> torch.Tensor:
+        """LDR values [...] of HDR values [...] (differentiable in ``hdr``)."""
+        inside = hdr.clamp(0.0, 1.0)
+        idx = torch.bucketize(inside.detach(), self.inner.to(hdr.dtype), right=True)
+        mid = inside * self.slope.to(hdr.dtype)[idx] + self.intercept.to(hdr.dtype)[idx]
+        high = (1 + self.alpha) - self.alpha * torch.rsqrt(hdr.clamp_min(1.0))
+        return torch.where(hdr < 0, self.alpha * hdr, torch.where(hdr > 1, high, mid))
 
 
 def nodes_from_logits(gap_logits: torch.Tensor) -> torch.Tensor:
@@ -143,13 +175,61 @@ def leaky_piecewise_linear(hdr: torch.Tensor, nodes: torch.Tensor, levels: torch
     return torch.where(hdr < 0, low, torch.where(hdr > 1, high, mid))
 
 
-def make_crf(kind: str, n_nodes: int = 16, alpha: float = 0.01, init: str = "linear"
+def make_crf(kind: str, n_nodes: int = 16, alpha: float = 0.01, init: str = "linear",
+             device: str | torch.device = "cpu"
              ) -> CameraResponse:
     """Factory: ``"learnable"`` (initialised ``init``), ``"srgb"`` (fixed) or ``"identity"``."""
     if kind == "learnable":
-        return LeakyPiecewiseLinearCRF(n_nodes, alpha, init)
+        return LeakyPiecewiseLinearCRF(n_nodes, alpha, init, device)
     if kind == "srgb":
         return FixedSRGBCRF()
     if kind == "identity":
         return IdentityCRF()
     raise ConfigError(f"unknown CRF kind {kind!r} (use learnable, srgb or identity)")
+
+
+def crf_to_dict(crf: CameraResponse) -> dict:
+    """Plain-data description of ``crf`` (JSON-ready) from which :func:`crf_from_dict` rebuilds
+    the same curve bit for bit.
+
+    ``{"kind": "identity" | "srgb"}``, or for the learnable curve ``{"kind": "learnable",
+    "alpha", "gap_logits" [N-1] (the raw parameters), "nodes_hdr" [N] and "levels_ldr" [N]}``:
+    ``nodes_hdr``/``levels_ldr`` are the control points (HDR input, LDR output) for readers
+    outside egs-bench; inside [0, 1] the curve interpolates them linearly, below 0 it is
+    ``alpha * x``, above 1 ``1 + alpha - alpha / sqrt(x)``.
+    """
+    if isinstance(crf, LeakyPiecewiseLinearCRF):
+        with torch.no_grad():
+            return {"kind": "learnable", "alpha": crf.alpha,
+                    "gap_logits": [float(v) for v in crf.gap_logits.detach().cpu()],
+                    "nodes_hdr": [float(v) for v in crf.nodes().detach().cpu()],
+                    "levels_ldr": [float(v) for v in crf.levels.detach().cpu()]}
+    if isinstance(crf, FixedSRGBCRF):
+        return {"kind": "srgb"}
+    if isinstance(crf, IdentityCRF):
+        return {"kind": "identity"}
+    raise ConfigError(f"cannot describe a CRF of type {type(crf).__name__}")
+
+
+def crf_from_dict(data: dict) -> CameraResponse:
+    """The CRF described by :func:`crf_to_dict` (float32 parameters, as during the run).
+
+    Raises:
+        ConfigError: unknown kind or malformed parameters.
+    """
+    kind = data.get("kind") if isinstance(data, dict) else None
+    if kind in ("identity", "srgb"):
+        return make_crf(kind)
+    if kind != "learnable":
+        raise ConfigError(f"unknown CRF kind {kind!r} (use learnable, srgb or identity)")
+    try:
+        logits = np.asarray(data["gap_logits"], dtype=np.float32)
+        alpha = float(data["alpha"])
+    except (KeyError, TypeError, ValueError) as exc:
+        raise ConfigError(f"learnable CRF needs 'alpha' and 'gap_logits' ({exc})") from None
+    if logits.ndim != 1 or len(logits) < 1 or not np.isfinite(logits).all():
+        raise ConfigError("learnable CRF 'gap_logits' must be a non-empty list of numbers")
+    crf = LeakyPiecewiseLinearCRF(len(logits) + 1, alpha)
+    with torch.no_grad():
+        crf.gap_logits.copy_(torch.from_numpy(logits))
+    return crf

@@ -12,33 +12,62 @@ segment holds about the same number of events (uniform when there are too few ev
 from __future__ import annotations
 
 import numpy as np
-import torch
 
-from egs_bench.slam.lie import invert_rigid, make_pose, so3_exp, so3_log
+from egs_bench.geometry.lie import so3_exp, so3_left_jacobian, so3_left_jacobian_inv, so3_log
 
 
-def interpolate_c2w(pose0_wc: torch.Tensor, pose1_wc: torch.Tensor, fractions: torch.Tensor
-                    ) -> torch.Tensor:
-    """Poses [M, 4, 4] at ``fractions`` [M] (0 -> pose0, 1 -> pose1), slerp + lerp.
+def exposure_path(pose0_cw: np.ndarray, pose1_cw: np.ndarray, fractions: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """Sub-poses of an exposure trajectory and their Jacobians w.r.t. the end poses' twists.
 
-    Differentiable w.r.t. both poses. Args are camera-to-world [4, 4].
+    Rotation slerped, camera centre on a straight line (the model of ``T(eta)`` above), in
+    float64 on the host. With ``Q_j, t_j`` the rotation and translation of the
+    world-to-camera end poses, ``omega = Log(Q_0 Q_1^T)`` and ``c_j = -Q_j^T t_j`` the camera
+    centres, the sub-pose at fraction ``f`` is ``Q(f) = Exp(-f omega) Q_0``,
+    ``t(f) = -Q(f) ((1 - f) c_0 + f c_1)``.
+
+    Jacobian: perturbing the end poses by left twists ``T_j <- Exp(xi_j) T_j``
+    (``xi = (rho, phi)``) perturbs sub-pose ``k`` by a left twist ``eta_k = A_k (xi_0, xi_1)``
+    with, to first order (exact derivatives at ``xi = 0``), ``E = Exp(-f omega)``:
+    ``rho_k = (1 - f) E rho_0 + f Exp((1 - f) omega) rho_1`` and
+    ``phi_k = (E - f J_l(-f omega) J_l^-1(omega)) phi_0 + f J_l(-f omega) J_r^-1(omega) phi_1``
+    (first-order BCH on ``Log(Exp(phi_0) Exp(omega) Exp(-phi_1))``; centres move by
+    ``-Q_j^T rho_j``).
+
+    Args:
+        pose0_cw, pose1_cw: world-to-camera poses [4, 4] at the exposure's start and end.
+        fractions: [M] in [0, 1]; a single fraction 1 means "no blur model": the sub-pose is
+            ``pose1_cw`` alone.
+
+    Returns:
+        ``viewmats`` [M, 4, 4] (world-to-camera) and ``jacobian`` [M, 6, 12] mapping the stacked
+        end twists ``(rho_0, phi_0, rho_1, phi_1)`` to each sub-pose's twist ``(rho_k, phi_k)``.
     """
-    rot0, rot1 = pose0_wc[:3, :3], pose1_wc[:3, :3]
-    rel = so3_log(rot0.transpose(0, 1) @ rot1)  # [3]
-    f = fractions.to(pose0_wc.dtype)
-    rots = rot0 @ so3_exp(f[:, None] * rel[None])  # [M, 3, 3]
-    trans = (1 - f)[:, None] * pose0_wc[:3, 3] + f[:, None] * pose1_wc[:3, 3]
-    return make_pose(rots, trans)
-
-
-def interpolate_w2c(pose0_cw: torch.Tensor, pose1_cw: torch.Tensor, fractions: torch.Tensor
-                    ) -> torch.Tensor:
-    """World-to-camera sub-poses [M, 4, 4] from world-to-camera end poses [4, 4] each.
-
-    Interpolation happens on the camera-to-world poses (straight-line camera centre).
-    """
-    return invert_rigid(interpolate_c2w(invert_rigid(pose0_cw), invert_rigid(pose1_cw),
-                                        fractions))
+    f = np.asarray(fractions, dtype=np.float64).reshape(-1)
+    m = f.shape[0]
+    p0 = np.asarray(pose0_cw, dtype=np.float64)
+    p1 = np.asarray(pose1_cw, dtype=np.float64)
+    jac = np.zeros((m, 6, 12))
+    if m == 1 and f[0] == 1.0:
+        jac[0, :, 6:] = np.eye(6)
+        return p1[None].copy(), jac
+    q0, t0, q1, t1 = p0[:3, :3], p0[:3, 3], p1[:3, :3], p1[:3, 3]
+    rel = q0 @ q1.T
+    omega = so3_log(rel)
+    e = so3_exp(-f[:, None] * omega)  # [M, 3, 3]
+    c0, c1 = -q0.T @ t0, -q1.T @ t1
+    centres = (1 - f)[:, None] * c0 + f[:, None] * c1
+    views = np.zeros((m, 4, 4))
+    views[:, :3, :3] = e @ q0
+    views[:, :3, 3] = -(views[:, :3, :3] @ centres[..., None])[..., 0]
+    views[:, 3, 3] = 1.0
+    jl = so3_left_jacobian(-f[:, None] * omega)
+    fc = f[:, None, None]
+    jac[:, 0:3, 0:3] = (1 - fc) * e
+    jac[:, 0:3, 6:9] = fc * (e @ rel)  # Exp((1 - f) omega)
+    jac[:, 3:6, 3:6] = e - fc * (jl @ so3_left_jacobian_inv(omega))
+    jac[:, 3:6, 9:12] = fc * (jl @ so3_left_jacobian_inv(-omega))
+    return views, jac
 
 
 def subpose_fractions(event_t_us: np.ndarray, t_start_us: int, t_end_us: int, n_segments: int,

@@ -24,7 +24,8 @@ class FrameObs:
         depth: depth [H, W] metres (0 = invalid).
         rgb_mask, depth_mask: bool [H, W] (MonoGS boundary / valid-depth masks).
         edge_weight: [H, W] float MonoGS tracking edge mask, or None.
-        fractions: sub-pose fractions eta_k / tau, [M] (M = K + 1, or [1.0] without blur model).
+        fractions: sub-pose fractions eta_k / tau, float64 numpy [M] (M = K + 1, or [1.0]
+            without blur model; host-side, like the poses).
         event_maps: [K, H, W] float32 polarity sums per segment (area-averaged when the internal
             resolution is reduced), or None when events are not used.
         n_events: number of events in the exposure window.
@@ -36,7 +37,7 @@ class FrameObs:
     rgb_mask: torch.Tensor
     depth_mask: torch.Tensor
     edge_weight: torch.Tensor | None
-    fractions: torch.Tensor
+    fractions: np.ndarray
     event_maps: torch.Tensor | None
     n_events: int
 
@@ -104,17 +105,21 @@ def load_frame(seq, i: int, cam: Intrinsics, cfg: SlamConfig, want_events: bool,
         index=i, rgb=rgb_t, depth=depth_t,
         rgb_mask=rgb_boundary_mask(rgb_t, cfg.rgb_boundary_threshold),
         depth_mask=depth_valid_mask(depth_t), edge_weight=edge,
-        fractions=torch.tensor(fr, dtype=torch.float64, device=device),
+        fractions=np.asarray(fr, dtype=np.float64),
         event_maps=event_maps, n_events=n_events,
     )
 
 
 @dataclass
 class FrameState:
-    """Estimated exposure trajectory (world-to-camera, float64 [4, 4]) and exposure of a frame."""
+    """Estimated exposure trajectory and exposure compensation of a frame.
+
+    Poses are world-to-camera float64 numpy [4, 4] on the host (the SLAM's pose algebra runs
+    there; see :mod:`egs_bench.slam.tracker`).
+    """
 
     index: int
-    pose0_cw: torch.Tensor
-    pose1_cw: torch.Tensor
+    pose0_cw: np.ndarray
+    pose1_cw: np.ndarray
     exp_a: float = 0.0
     exp_b: float = 0.0

@@ -1,8 +1,8 @@
-"""Loss terms of EGS-SLAM (paper §III.C–D) and the MonoGS masks they are used with.
+"""Pieces of the EGS-SLAM loss (paper §III.C–D) and the MonoGS masks it is used with.
 
 Images are channels-last: rendered / observed colour [H, W, 3], depth [H, W] in metres,
-event maps [K, H, W] (sum of polarities per segment). Every mean runs over *all* pixels with
-masked pixels contributing zero, as MonoGS does, so terms keep their scale when masks shrink.
+event maps [K, H, W] (sum of polarities per segment). The loss itself, batched over frames, is
+:func:`egs_bench.slam.render_model.blur_loss`; this module holds its pieces and masks.
 """
 
 from __future__ import annotations
@@ -57,80 +57,20 @@ def edge_mask(obs_rgb: np.ndarray, edge_threshold: float, blocks: int | None = 3
     return out
 
 
-def photometric_l1(pred: torch.Tensor, obs: torch.Tensor, mask: torch.Tensor,
-                   weight: torch.Tensor | None = None) -> torch.Tensor:
-    """``mean(weight * |pred - obs|)`` over all 3 H W values, masked pixels count as zero.
+def rendered_event_maps(hdr_rgb: torch.Tensor, eps: float,
+                        luma_weights: torch.Tensor | None = None) -> torch.Tensor:
+    """``E^_k = log(B(T(eta_k)) + eps) - log(B(T(eta_{k-1})) + eps)`` [..., K, H, W].
 
     Args:
-        pred, obs: LDR images [H, W, 3]. mask: bool [H, W]. weight: [H, W] or None (MonoGS
-        tracking passes edge mask x detached rendered opacity).
+        hdr_rgb: linear renders at the K+1 sub-poses [..., K+1, H, W, 3].
+        eps: the log offset of the sequence's event model.
+        luma_weights: BT.601 weights [3] on the renders' device (made here when None; pass
+            them from a loop to avoid a host-to-device copy per call).
     """
-    m = mask.to(pred.dtype)
-    if weight is not None:
-        m = m * weight.to(pred.dtype)
-    return (m[..., None] * (pred - obs).abs()).mean()
-
-
-def depth_l1(pred: torch.Tensor, obs: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
-    """``mean(|pred - obs|)`` over all H W pixels of depth [H, W], masked pixels count zero."""
-    return (mask.to(pred.dtype) * (pred - obs).abs()).mean()
-
-
-def min_depth_loss(pred: torch.Tensor, obs: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
-    """Paper's ``L_D = min_k ||D_obs - D(T(eta_k))||_1`` for rendered depths [M, H, W].
-
-    Args:
-        pred: rendered depth per sub-pose [M, H, W]. obs: observed depth [H, W].
-        mask: bool [H, W] (shared) or [M, H, W] (per sub-pose, e.g. rendered opacity > 0.95).
-    """
-    if mask.dim() == 2:
-        mask = mask[None]
-    if pred.dim() != 3 or mask.dim() != 3 or mask.shape[1:] != pred.shape[1:]:
-        raise ValueError(f"depth [M,H,W] {tuple(pred.shape)} and mask {tuple(mask.shape)} differ")
-    per_pose = (mask.to(pred.dtype) * (pred - obs[None]).abs()).mean(dim=(1, 2))  # [M]
-    return per_pose.min()
-
-
-def luma(rgb_linear: torch.Tensor) -> torch.Tensor:
-    """BT.601 luma [...] of linear RGB [..., 3]."""
-    w = torch.tensor(LUMA_BT601, dtype=rgb_linear.dtype, device=rgb_linear.device)
-    return rgb_linear @ w
-
-
-def rendered_event_maps(hdr_rgb: torch.Tensor, eps: float) -> torch.Tensor:
-    """``E^_k = log(B(T(eta_k)) + eps) - log(B(T(eta_{k-1})) + eps)`` [K, H, W].
-
-    Args:
-        hdr_rgb: linear renders at the K+1 sub-poses [K+1, H, W, 3].
-        eps: the log offset of the sequence (DESIGN §2).
-    """
-    log_b = torch.log(luma(hdr_rgb).clamp_min(0.0) + eps)
-    return log_b[1:] - log_b[:-1]
-
-
-def event_loss(pred_maps: torch.Tensor, event_maps: torch.Tensor, theta_pos: float,
-               theta_neg: float, valid: torch.Tensor | None = None
-               ) -> tuple[torch.Tensor, torch.Tensor]:
-    """Paper's ``L_HE`` and ``L_NE`` (per-pixel means over all H W pixels, averaged over K).
-
-    ``L_HE``: over pixels with ``E_k != 0`` of ``|theta E_k - E^_k|`` where theta is the
-    positive or negative contrast threshold by the sign of ``E_k``; ``L_NE``: over ``E_k == 0``
-    of ``|E^_k|``.
-
-    Args:
-        pred_maps: rendered log-luma differences [K, H, W].
-        event_maps: observed polarity sums [K, H, W] (any integer/float dtype).
-        valid: optional bool [H, W] of pixels to use (e.g. excluding unobserved map regions).
-    """
-    e = event_maps.to(pred_maps.dtype)
-    theta = torch.where(e > 0, torch.full_like(e, theta_pos), torch.full_like(e, theta_neg))
-    has_event = e != 0
-    resid_he = (theta * e - pred_maps).abs() * has_event
-    resid_ne = pred_maps.abs() * (~has_event)
-    if valid is not None:
-        v = valid.to(pred_maps.dtype)[None]
-        resid_he, resid_ne = resid_he * v, resid_ne * v
-    return resid_he.mean(), resid_ne.mean()
+    if luma_weights is None:
+        luma_weights = torch.tensor(LUMA_BT601, dtype=hdr_rgb.dtype, device=hdr_rgb.device)
+    log_b = torch.log((hdr_rgb @ luma_weights).clamp_min(0.0) + eps)
+    return log_b[..., 1:, :, :] - log_b[..., :-1, :, :]
 
 
 def isotropic_loss(scales: torch.Tensor) -> torch.Tensor:

@@ -1,18 +1,34 @@
 """Mapping: optimise the Gaussians (and the latest keyframes' exposure trajectories, their
 exposures and the CRF) on the keyframe window plus random older keyframes (paper §III.D,
-MonoGS single-process backend)."""
+MonoGS single-process backend).
+
+Each iteration renders the sub-poses of all its keyframes in one rasteriser call and evaluates
+their losses as one batched expression. Keyframe poses and exposures are optimised on the host
+like tracking does (:mod:`egs_bench.slam.tracker`): one copy of their values to the device and
+one copy of their gradients and the loss back per iteration.
+"""
 
 from __future__ import annotations
 
+import numpy as np
 import torch
 
+from egs_bench.geometry.lie import se3_exp, twist_gradient
 from egs_bench.render import GaussianMap
 from egs_bench.slam.config import SlamConfig
 from egs_bench.slam.crf import CameraResponse
+from egs_bench.slam.exposure import exposure_path
 from egs_bench.slam.frames import FrameObs, FrameState
-from egs_bench.slam.losses import isotropic_loss
-from egs_bench.slam.render_model import frame_loss, render_views, subposes
-from egs_bench.slam.tracker import PoseIncrements
+from egs_bench.slam.host_adam import HostAdam
+from egs_bench.slam.render_model import (
+    LossTargets,
+    blur_loss,
+    mapping_regulariser,
+    prepare_targets,
+    render_views,
+    stack_targets,
+)
+from egs_bench.slam.tracker import to_device
 
 
 class Mapper:
@@ -25,26 +41,49 @@ class Mapper:
 
     def __init__(self, gmap: GaussianMap, crf: CameraResponse, cfg: SlamConfig, K: torch.Tensor,
                  width: int, height: int, theta: tuple[float, float], eps: float,
-                 generator: torch.Generator) -> None:
+                 rng: np.random.Generator) -> None:
         self.gmap, self.crf, self.cfg = gmap, crf, cfg
         self.K, self.width, self.height = K, width, height
-        self.theta, self.eps, self.gen = theta, eps, generator
+        self.theta, self.eps, self.rng = theta, eps, rng
         self.iteration = 0
+        self.targets: dict[int, LossTargets] = {}
         self.crf_opt = None
         crf_params = list(crf.parameters())
         if crf_params:
-            self.crf_opt = torch.optim.Adam(crf_params, lr=cfg.lr_crf)
+            self.crf_opt = torch.optim.Adam(crf_params, lr=cfg.lr_crf, foreach=True)
 
     def _gaussian_optimizer(self) -> torch.optim.Adam:
         g, c = self.gmap, self.cfg
         g.requires_grad_(True)
+        fused = g.device.type == "cuda"
         return torch.optim.Adam([
             {"params": [g.means], "lr": c.lr_means},
             {"params": [g.colors], "lr": c.lr_colors},
             {"params": [g.opacity_logits], "lr": c.lr_opacity},
             {"params": [g.log_scales], "lr": c.lr_scales},
             {"params": [g.quats], "lr": c.lr_quats},
-        ], eps=1e-15)
+        ], eps=1e-15, fused=fused or None, foreach=None if fused else True)
+
+    def _targets(self, k: int, obs: FrameObs) -> LossTargets:
+        if k not in self.targets:
+            self.targets[k] = prepare_targets(obs, self.cfg, self.theta, tracking=False,
+                                              use_events=self.cfg.event_mapping)
+        return self.targets[k]
+
+    def _pick_views(self, window: list[int], all_keyframes: list[int]) -> list[int]:
+        """The window plus ``n_random_kfs`` random older keyframes, optionally subsampled to
+        ``views_per_iter`` (always keeping the newest keyframe)."""
+        cfg = self.cfg
+        views = list(window)
+        others = [k for k in all_keyframes if k not in window]
+        if others and cfg.n_random_kfs > 0:
+            pick = self.rng.permutation(len(others))[: cfg.n_random_kfs]
+            views += [others[int(j)] for j in pick]
+        if cfg.views_per_iter is not None and len(views) > cfg.views_per_iter:
+            rest = views[1:]
+            pick = self.rng.permutation(len(rest))[: cfg.views_per_iter - 1]
+            views = [views[0]] + [rest[int(j)] for j in pick]
+        return views
 
     def optimise(self, states: dict[int, FrameState], observations: dict[int, FrameObs],
                  window: list[int], all_keyframes: list[int], iterations: int,
@@ -62,88 +101,71 @@ class Mapper:
         """
         cfg = self.cfg
         opt = self._gaussian_optimizer()
-        dev, pdt = self.gmap.device, states[window[0]].pose1_cw.dtype
+        blur = cfg.n_segments > 1
         # No pose is refined while the map is built from frame 0 alone: with one view the map
         # absorbs any T_0 (measured: frame 0's T_0 drifted 9 cm from a 2 cm true motion on
         # `demo`, and the constant-velocity prediction of frame 1 inherited it). Frame 0's T_0
         # is refined later, when other keyframes constrain the map.
         refine = [] if initial else list(window[: cfg.pose_window])
-        blur = cfg.n_segments > 1
-        # Which pose slots of each refined keyframe move: [T_0, T_tau].
-        slots = {k: [blur, k != fixed_end_pose] for k in refine}
+        # Which end poses of each refined keyframe move: (T_0, T_tau).
+        slots = {k: (blur, k != fixed_end_pose) for k in refine}
         refine = [k for k in refine if any(slots[k])]
-        inc = PoseIncrements(2 * len(refine), pdt, dev)
-        exposure = {k: (torch.tensor(states[k].exp_a, dtype=self.gmap.dtype, device=dev,
-                                     requires_grad=True),
-                        torch.tensor(states[k].exp_b, dtype=self.gmap.dtype, device=dev,
-                                     requires_grad=True)) for k in window}
-        groups = [{"params": [inc.rho], "lr": cfg.lr_trans * cfg.kf_pose_lr_scale},
-                  {"params": [inc.theta], "lr": cfg.lr_rot * cfg.kf_pose_lr_scale}]
         use_exposure = cfg.exposure_compensation and not initial
-        if use_exposure:
-            groups.append({"params": [t for k in window if k != fixed_end_pose
-                                      for t in exposure[k]], "lr": cfg.lr_exposure})
-        kf_opt = torch.optim.Adam(groups)
-        slot_mask = torch.tensor([[float(s) for s in slots[k]] for k in refine], dtype=pdt,
-                                 device=dev).reshape(-1, 1)
+        free_exposure = [k for k in window if k != fixed_end_pose] if use_exposure else []
+        # Host Adam over the refined keyframes' end twists (12 each; frozen slots get zero
+        # gradients) and the window's exposures (2 each).
+        pose_lr = np.r_[[cfg.lr_trans] * 3, [cfg.lr_rot] * 3] * cfg.kf_pose_lr_scale
+        adam = HostAdam(np.r_[np.tile(pose_lr, 2 * len(refine)),
+                              [cfg.lr_exposure] * (2 * len(free_exposure))])
+        slot_mask = np.repeat(np.array([s for k in refine for s in slots[k]], float), 6)
+        like = self.gmap.means
         loss_val = float("nan")
         prune_due = False
         for _ in range(iterations):
-            views = list(window)
-            others = [k for k in all_keyframes if k not in window]
-            if others and cfg.n_random_kfs > 0:
-                pick = torch.randperm(len(others), generator=self.gen)[: cfg.n_random_kfs]
-                views += [others[int(j)] for j in pick]
-            if cfg.views_per_iter is not None and len(views) > cfg.views_per_iter:
-                rest = views[1:]
-                pick = torch.randperm(len(rest), generator=self.gen)[: cfg.views_per_iter - 1]
-                views = [views[0]] + [rest[int(j)] for j in pick]
+            views = self._pick_views(window, all_keyframes)
+            paths = {k: exposure_path(states[k].pose0_cw, states[k].pose1_cw,
+                                      observations[k].fractions) for k in views}
+            m = len(observations[views[0]].fractions)
+            exposure = np.array([[states[k].exp_a, states[k].exp_b] for k in views])
+            flat = [paths[k][0].ravel() for k in views]
+            packed = to_device(np.concatenate(flat + [exposure.ravel()]), like)
+            n_vm = 16 * m * len(views)
+            viewmats = packed[:n_vm].view(-1, 4, 4)
+            exp_ab = packed[n_vm:].view(-1, 2) if use_exposure else None
+            if refine:
+                viewmats.requires_grad_()
+            if free_exposure:
+                exp_ab.requires_grad_()
+            targets = stack_targets([self._targets(k, observations[k]) for k in views])
+            res = render_views(self.gmap, viewmats, self.K, self.width, self.height, cfg)
+            total = blur_loss(res, targets, self.crf, exp_ab, cfg, tracking=False,
+                              eps=self.eps)
+            if not initial:
+                total = total + mapping_regulariser(self.gmap, cfg)
             opt.zero_grad(set_to_none=True)
-            kf_opt.zero_grad(set_to_none=True)
             if self.crf_opt is not None:
                 self.crf_opt.zero_grad(set_to_none=True)
-            total = torch.zeros((), dtype=self.gmap.dtype, device=dev)
-            moved = None
-            if refine:
-                base = torch.stack([p for k in refine
-                                    for p in (states[k].pose0_cw, states[k].pose1_cw)])
-                moved = inc.apply(base, slot_mask)
-            for k in views:
-                if moved is not None and k in refine:
-                    j = refine.index(k)
-                    p0, p1 = moved[2 * j], moved[2 * j + 1]
-                else:
-                    p0, p1 = states[k].pose0_cw, states[k].pose1_cw
-                zero = torch.zeros((), dtype=self.gmap.dtype, device=dev)
-                a, b = exposure.get(k, (zero, zero)) if use_exposure else (zero, zero)
-                total = total + self._view_loss(p0, p1, observations[k], a, b)
-            if not initial:
-                total = total + cfg.lambda_iso * isotropic_loss(self.gmap.scales)
-            loss_val = float(total.detach())
-            if not torch.isfinite(total):
-                break
             total.backward()
+            grads = []
+            if refine:
+                grads.append(viewmats.grad.reshape(-1))
+            if free_exposure:
+                grads.append(exp_ab.grad.reshape(-1))
+            host = torch.cat([*grads, total.detach().reshape(1)]).cpu().numpy().astype(
+                np.float64)
+            loss_val = float(host[-1])
+            if not np.isfinite(loss_val):
+                break
             self._gaussian_step(opt)
-            kf_opt.step()
             if self.crf_opt is not None and not initial:
                 self.crf_opt.step()
-            if refine:
-                new, _ = inc.fold(torch.stack(
-                    [p for k in refine for p in (states[k].pose0_cw, states[k].pose1_cw)]),
-                    slot_mask)
-                for j, k in enumerate(refine):
-                    states[k].pose0_cw, states[k].pose1_cw = new[2 * j], new[2 * j + 1]
-            if blur is False:
-                for k in refine:
-                    states[k].pose0_cw = states[k].pose1_cw
+            if refine or free_exposure:
+                self._host_step(adam, states, views, paths, refine, slot_mask, free_exposure,
+                                host[:-1], m)
             self.iteration += 1
             if not initial and self.iteration % cfg.prune_every == cfg.prune_offset % max(
                     cfg.prune_every, 1):
                 prune_due = True
-        for k in window:
-            if use_exposure and k != fixed_end_pose:
-                states[k].exp_a = float(exposure[k][0].detach())
-                states[k].exp_b = float(exposure[k][1].detach())
         self.gmap.requires_grad_(False)
         with torch.no_grad():
             if initial:
@@ -151,6 +173,41 @@ class Mapper:
             elif prune_due:
                 self._prune(cfg.prune_opacity)
         return loss_val
+
+    def _host_step(self, adam: HostAdam, states: dict[int, FrameState], views: list[int],
+                   paths: dict[int, tuple[np.ndarray, np.ndarray]], refine: list[int],
+                   slot_mask: np.ndarray, free_exposure: list[int], host_grads: np.ndarray,
+                   m: int) -> None:
+        """One host Adam step on the refined keyframes' end poses and the window's exposures,
+        from the packed gradients (sub-pose gradients of every view, then ``(a, b)`` per view)."""
+        n_vm = 16 * m * len(views) if refine else 0
+        g_pose = []
+        if refine:
+            g_views = host_grads[:n_vm].reshape(len(views), m, 4, 4)
+            for k in refine:
+                if k in views:
+                    v = views.index(k)
+                    g_sub = twist_gradient(paths[k][0], g_views[v])
+                    g_pose.append(np.einsum("mi,mij->j", g_sub, paths[k][1]))
+                else:  # subsampled out of this iteration: no gradient
+                    g_pose.append(np.zeros(12))
+        g_exp = []
+        if free_exposure:
+            e = host_grads[n_vm:].reshape(len(views), 2)
+            g_exp = [e[views.index(k)] if k in views else np.zeros(2) for k in free_exposure]
+        delta = adam.step(np.concatenate([*g_pose, *g_exp]) if (g_pose or g_exp) else
+                          np.zeros(0))
+        twists = (delta[:12 * len(refine)] * slot_mask).reshape(len(refine), 2, 6)
+        for j, k in enumerate(refine):
+            st = states[k]
+            st.pose0_cw = se3_exp(twists[j, 0]) @ st.pose0_cw
+            st.pose1_cw = se3_exp(twists[j, 1]) @ st.pose1_cw
+            if self.cfg.n_segments == 1:
+                st.pose0_cw = st.pose1_cw.copy()
+        for j, k in enumerate(free_exposure):
+            da, db = delta[12 * len(refine) + 2 * j: 12 * len(refine) + 2 * j + 2]
+            states[k].exp_a += float(da)
+            states[k].exp_b += float(db)
 
     def refine(self, states: dict[int, FrameState], observations: dict[int, FrameObs],
                keyframes: list[int], iterations: int) -> float:
@@ -160,33 +217,26 @@ class Mapper:
         loss, so `egs` keeps its blur model and events. Returns the last loss."""
         cfg = self.cfg
         opt = self._gaussian_optimizer()
-        dev = self.gmap.device
+        like = self.gmap.means
         loss_val = float("nan")
         for _ in range(iterations):
-            k = keyframes[int(torch.randint(len(keyframes), (1,), generator=self.gen))]
+            k = keyframes[int(self.rng.integers(len(keyframes)))]
             st = states[k]
-            a = torch.tensor(st.exp_a, dtype=self.gmap.dtype, device=dev)
-            b = torch.tensor(st.exp_b, dtype=self.gmap.dtype, device=dev)
-            total = (self._view_loss(st.pose0_cw, st.pose1_cw, observations[k], a, b)
-                     + cfg.lambda_iso * isotropic_loss(self.gmap.scales))
-            loss_val = float(total.detach())
-            if not torch.isfinite(total):
-                break
+            views = exposure_path(st.pose0_cw, st.pose1_cw, observations[k].fractions)[0]
+            exp_ab = to_device(np.array([st.exp_a, st.exp_b]), like).view(1, 2) \
+                if cfg.exposure_compensation else None
+            res = render_views(self.gmap, views, self.K, self.width, self.height, cfg)
+            total = (blur_loss(res, self._targets(k, observations[k]), self.crf, exp_ab, cfg,
+                               tracking=False, eps=self.eps)
+                     + mapping_regulariser(self.gmap, cfg))
             opt.zero_grad(set_to_none=True)
             total.backward()
+            loss_val = float(total.detach())
+            if not np.isfinite(loss_val):
+                break
             self._gaussian_step(opt)
         self.gmap.requires_grad_(False)
         return loss_val
-
-    def _view_loss(self, pose0_cw: torch.Tensor, pose1_cw: torch.Tensor, obs: FrameObs,
-                   exp_a: torch.Tensor, exp_b: torch.Tensor) -> torch.Tensor:
-        """Mapping loss (scalar tensor) of one keyframe rendered along its exposure trajectory
-        ``pose0_cw -> pose1_cw`` [4, 4] with exposure compensation ``exp_a, exp_b``."""
-        res = render_views(self.gmap, subposes(pose0_cw, pose1_cw, obs.fractions), self.K,
-                           self.width, self.height, self.cfg)
-        return frame_loss(res, obs, self.crf, exp_a, exp_b, self.cfg, tracking=False,
-                          use_events=self.cfg.event_mapping, theta=self.theta,
-                          eps=self.eps).total
 
     def _gaussian_step(self, opt: torch.optim.Adam) -> None:
         """One Adam step on the Gaussians, then colours projected onto >= 0 (radiance is
@@ -199,4 +249,5 @@ class Mapper:
         remove = self.gmap.opacities.detach() < min_opacity
         if bool(remove.all()):  # never empty the map entirely
             return 0
-        return self.gmap.prune(remove)
+        removed = self.gmap.prune(remove)
+        return removed

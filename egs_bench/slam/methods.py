@@ -25,10 +25,14 @@ class ConfiguredSlamMethod:
     description: str
     overrides: dict[str, Any] = field(default_factory=dict)
 
-    def config(self, preset: str = "paper"):  # -> SlamConfig
+    def config(self, preset: str = "paper", meta: dict[str, Any] | None = None):  # -> SlamConfig
+        """The preset, then what the sequence's ``meta`` implies (real data: the paper's
+        real-data values), then this method's own overrides."""
+        from egs_bench.recordings.params import sequence_slam_defaults
         from egs_bench.slam.config import preset as make_preset
 
-        return make_preset(preset).replace(**self.overrides).validate()
+        base = make_preset(preset).replace(**sequence_slam_defaults(meta or {}))
+        return base.replace(**self.overrides).validate()
 
     def run(self, sequence: Sequence, out: Path, *, preset: str = "paper", device: str = "cpu",
             seed: int = 0, max_frames: int | None = None, progress: bool = True,
@@ -38,7 +42,7 @@ class ConfiguredSlamMethod:
         resolved configuration)."""
         from egs_bench.slam.runner import run_slam
 
-        config = self.config(preset).replace(**(options or {})).validate()
+        config = self.config(preset, sequence.meta).replace(**(options or {})).validate()
         return run_slam(sequence, out, method_name=self.name, config=config,
                         preset=preset, device=device, seed=seed, max_frames=max_frames,
                         progress=progress)

@@ -1,88 +1,157 @@
-"""Blur-aware rendering of one frame and its loss (paper §III.B–C, MonoGS masks).
+"""Blur-aware rendering of frames and their loss (paper §III.B–D, MonoGS masks), batched.
 
-One rasteriser call renders the M sub-poses of the exposure; the HDR average goes through the
-CRF (and MonoGS's exposure compensation) to the LDR prediction; event maps are log-luma
-differences between consecutive sub-frames.
+One rasteriser call renders the M sub-poses of each of V frames (tracking: V = 1; mapping: the
+keyframes of the iteration). Per frame, the HDR sub-images are averaged, go through the CRF
+(and MonoGS's exposure compensation ``exp(a) I + b``) to the LDR prediction; event maps are
+log-luma differences between consecutive sub-images.
+
+Everything that depends on the observations alone (masks, ``theta E`` targets, weights) is
+prepared once per frame in :class:`LossTargets`, so an iteration issues few, large tensor
+operations (each one is a kernel launch on a GPU; see ``benchmarks/bench_slam_overhead.py``).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, fields
 
+import numpy as np
 import torch
 
+from egs_bench.datasets.color import LUMA_BT601
 from egs_bench.render import GaussianMap
 from egs_bench.slam.config import SlamConfig
-from egs_bench.slam.crf import CameraResponse
-from egs_bench.slam.exposure import interpolate_w2c
 from egs_bench.slam.frames import FrameObs
-from egs_bench.slam.losses import (
-    event_loss,
-    min_depth_loss,
-    photometric_l1,
-    rendered_event_maps,
-)
+from egs_bench.slam.losses import isotropic_loss, rendered_event_maps
 
 
 @dataclass
-class LossParts:
-    total: torch.Tensor
-    photometric: float
-    depth: float
-    event_he: float
-    event_ne: float
+class LossTargets:
+    """Observations of V frames, prepared for :func:`blur_loss` (device tensors, float).
+
+    Attributes:
+        rgb: observed LDR images [V, H, W, 3].
+        photo_weight: [V, H, W] MonoGS boundary mask (channel sum > threshold), times the
+            edge mask in tracking.
+        depth: observed depth [V, H, W] (m; 0 = invalid).
+        depth_mask: [V, H, W] 1 where the depth is valid.
+        event_target: [V, K, H, W] ``theta E_k`` (theta by the sign of the polarity sum E_k),
+            or None without event loss.
+        event_weight: [V, K, H, W] 1 where ``E_k != 0`` (``L_HE``) and ``lambda_NE`` where
+            ``E_k = 0`` (``L_NE``, 0 without the no-event loss), or None.
+        luma_weights: [3] BT.601 weights on the device (rendered luma = rgb @ weights).
+    """
+
+    rgb: torch.Tensor
+    photo_weight: torch.Tensor
+    depth: torch.Tensor
+    depth_mask: torch.Tensor
+    event_target: torch.Tensor | None
+    event_weight: torch.Tensor | None
+    luma_weights: torch.Tensor
+
+    @property
+    def n_views(self) -> int:
+        return int(self.rgb.shape[0])
 
 
-def subposes(pose0_cw: torch.Tensor, pose1_cw: torch.Tensor, fractions: torch.Tensor
-             ) -> torch.Tensor:
-    """World-to-camera sub-poses [M, 4, 4]; with a single fraction 1.0 just ``pose1_cw``."""
-    if fractions.numel() == 1:
-        return pose1_cw[None]
-    return interpolate_w2c(pose0_cw, pose1_cw, fractions)
+def prepare_targets(obs: FrameObs, cfg: SlamConfig, theta: tuple[float, float], *,
+                    tracking: bool, use_events: bool) -> LossTargets:
+    """:class:`LossTargets` of one frame (V = 1) for tracking or mapping."""
+    dtype = obs.rgb.dtype
+    weight = obs.rgb_mask.to(dtype)
+    if tracking and obs.edge_weight is not None:
+        weight = weight * obs.edge_weight.to(dtype)
+    target = event_weight = None
+    if use_events and obs.event_maps is not None and len(obs.fractions) > 1:
+        e = obs.event_maps.to(dtype)
+        has = e != 0
+        target = torch.where(e > 0, theta[0] * e, theta[1] * e)
+        lam_ne = cfg.lambda_ne if cfg.no_event_loss else 0.0
+        event_weight = torch.where(has, torch.ones_like(e), torch.full_like(e, lam_ne))
+        target, event_weight = target[None], event_weight[None]
+    luma = torch.tensor(LUMA_BT601, dtype=dtype, device=obs.rgb.device)  # once per frame
+    return LossTargets(obs.rgb[None], weight[None], obs.depth[None],
+                       obs.depth_mask.to(dtype)[None], target, event_weight, luma)
 
 
-def render_views(gmap: GaussianMap, viewmats: torch.Tensor, K: torch.Tensor, width: int,
-                 height: int, cfg: SlamConfig):
-    """Render ``viewmats`` [C, 4, 4] (any float dtype) with the map's dtype; RasterResult."""
-    vm = viewmats.to(gmap.dtype)
+def stack_targets(targets: list[LossTargets]) -> LossTargets:
+    """Concatenate the views of several :class:`LossTargets` (all with or all without events)."""
+    def cat(name: str) -> torch.Tensor | None:
+        parts = [getattr(t, name) for t in targets]
+        return None if any(p is None for p in parts) else torch.cat(parts)
+    return LossTargets(*(cat(f.name) for f in fields(LossTargets) if f.name != "luma_weights"),
+                       targets[0].luma_weights)
+
+
+def render_views(gmap: GaussianMap, viewmats: torch.Tensor | np.ndarray, K: torch.Tensor,
+                 width: int, height: int, cfg: SlamConfig, *, visibility: bool = False):
+    """Render world-to-camera ``viewmats`` [C, 4, 4] (any float dtype, tensor or array) with the
+    map's dtype and device; returns the RasterResult (``visibility`` only when asked)."""
+    if isinstance(viewmats, np.ndarray):
+        viewmats = torch.from_numpy(viewmats)
+    vm = viewmats.to(device=gmap.device, dtype=gmap.dtype)
     ks = K.to(gmap.dtype).expand(vm.shape[0], 3, 3)
-    return gmap.render(vm, ks, width, height, near_plane=cfg.near_plane, backend=cfg.backend)
+    return gmap.render(vm, ks, width, height, near_plane=cfg.near_plane, backend=cfg.backend,
+                       visibility=visibility)
 
 
-def frame_loss(res, obs: FrameObs, crf: CameraResponse, exp_a: torch.Tensor,
-               exp_b: torch.Tensor, cfg: SlamConfig, *, tracking: bool, use_events: bool,
-               theta: tuple[float, float], eps: float) -> LossParts:
-    """``lambda_E L_E + lambda_ID (lambda_I L_I + lambda_D L_D)`` for one frame.
+def blur_loss(res, targets: LossTargets, crf: Callable[[torch.Tensor], torch.Tensor],
+              exp_ab: torch.Tensor | None, cfg: SlamConfig, *, tracking: bool, eps: float,
+              terms: bool = False) -> torch.Tensor | dict[str, torch.Tensor]:
+    """Sum over the V frames of ``lambda_E L_E + lambda_ID (lambda_I L_I + lambda_D L_D)``.
 
     Args:
-        res: RasterResult of the frame's M sub-poses.
-        exp_a, exp_b: exposure compensation scalars (tensors; zero when disabled).
-        tracking: MonoGS tracking masks (edge x opacity weight, opacity > 0.95 for depth)
+        res: RasterResult of V x M cameras, frame-major (M sub-poses of frame 0, then frame 1...).
+        targets: the V frames' observations.
+        crf: HDR -> LDR response (a :class:`~egs_bench.slam.crf.CameraResponse` or its frozen
+            curve).
+        exp_ab: [V, 2] exposure compensation ``(a, b)`` per frame, or None (disabled).
+        tracking: MonoGS tracking masks (photometric weight x mean rendered opacity, depth
+            where the rendered opacity > 0.95, events where it is > 0.5 in every sub-image)
             instead of the mapping masks.
-        theta: (positive, negative) contrast thresholds.
+        eps: log offset of the event model (the sequence's).
+        terms: return the per-term sums (``photometric``, ``depth``, ``event_he``,
+            ``event_ne``, ``total``) instead of the total alone (diagnostics; more operations).
+
+    Every mean runs over all pixels with masked pixels counting zero (MonoGS), per frame.
     """
-    hdr = res.rgb  # [M, H, W, 3]
-    ldr = crf(hdr.mean(0))
-    if cfg.exposure_compensation:
-        ldr = torch.exp(exp_a) * ldr + exp_b
-    alpha = res.alpha.detach()
-    weight = None
-    depth_mask = obs.depth_mask
+    v = targets.n_views
+    c, h, w = res.rgb.shape[:3]
+    m = c // v
+    hdr = res.rgb.view(v, m, h, w, 3)
+    ldr = crf(hdr.mean(1))
+    if exp_ab is not None:
+        ab = exp_ab.view(v, 1, 1, 2)
+        ldr = torch.addcmul(ab[..., 1:], ldr, ab[..., :1].exp())
+    alpha = res.alpha.detach().view(v, m, h, w)
+    weight = targets.photo_weight
+    depth_mask = targets.depth_mask[:, None]
     if tracking:
-        weight = alpha.mean(0)
-        if obs.edge_weight is not None:
-            weight = weight * obs.edge_weight
-        depth_mask = obs.depth_mask[None] & (alpha > 0.95)
-    l_i = photometric_l1(ldr, obs.rgb, obs.rgb_mask, weight)
-    rendered_depth = res.expected_depth if cfg.expected_depth else res.depth
-    l_d = min_depth_loss(rendered_depth, obs.depth, depth_mask)
-    total = cfg.lambda_id * (cfg.lambda_i * l_i + cfg.lambda_d * l_d)
-    l_he = l_ne = torch.zeros((), dtype=hdr.dtype, device=hdr.device)
-    if use_events and obs.event_maps is not None and hdr.shape[0] > 1:
-        pred = rendered_event_maps(hdr, eps)
-        valid = (alpha > 0.5).all(0) if tracking else None
-        l_he, l_ne = event_loss(pred, obs.event_maps, theta[0], theta[1], valid)
-        lam_ne = cfg.lambda_ne if cfg.no_event_loss else 0.0
-        total = total + cfg.lambda_e * (l_he + lam_ne * l_ne)
-    return LossParts(total, float(l_i.detach()), float(l_d.detach()), float(l_he.detach()),
-                     float(l_ne.detach()))
+        weight = weight * alpha.mean(1)
+        depth_mask = depth_mask * (alpha > 0.95)
+    l_i = (weight[..., None] * (ldr - targets.rgb).abs()).mean((1, 2, 3))  # [V]
+    depth = (res.expected_depth if cfg.expected_depth else res.depth).view(v, m, h, w)
+    l_d = (depth_mask * (depth - targets.depth[:, None]).abs()).mean((2, 3)).amin(1)  # [V]
+    total = cfg.lambda_id * (cfg.lambda_i * l_i + cfg.lambda_d * l_d).sum()
+    out: dict[str, torch.Tensor] = {}
+    if targets.event_target is not None and m > 1:
+        pred = rendered_event_maps(hdr, eps, targets.luma_weights)  # [V, K, H, W]
+        resid = (targets.event_target - pred).abs()
+        if tracking:
+            resid = resid * (alpha > 0.5).all(1, keepdim=True)
+        total = total + (cfg.lambda_e * v) * (targets.event_weight * resid).mean()
+        if terms:
+            has = (targets.event_target != 0).to(resid.dtype)
+            out["event_he"] = (has * resid).mean((1, 2, 3)).sum()
+            out["event_ne"] = ((1 - has) * resid).mean((1, 2, 3)).sum()
+    if not terms:
+        return total
+    zero = total.new_zeros(())
+    return {"photometric": l_i.sum(), "depth": l_d.sum(), "event_he": out.get("event_he", zero),
+            "event_ne": out.get("event_ne", zero), "total": total}
+
+
+def mapping_regulariser(gmap: GaussianMap, cfg: SlamConfig) -> torch.Tensor:
+    """``lambda_iso`` x the isotropic term on the map's scales (paper eq. 15, MonoGS)."""
+    return cfg.lambda_iso * isotropic_loss(gmap.scales)

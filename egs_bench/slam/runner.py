@@ -14,6 +14,7 @@ from egs_bench.errors import ConfigError
 from egs_bench.fileio import write_text_atomic
 from egs_bench.geometry import invert_pose
 from egs_bench.runs.folder import RunFolder
+from egs_bench.slam.appearance import APPEARANCE_FILE, MAP_FILE, Appearance, ldr8, write_appearance
 from egs_bench.slam.config import SlamConfig
 from egs_bench.slam.render_model import render_views
 from egs_bench.slam.system import FrameReport, SlamSystem
@@ -43,8 +44,10 @@ def run_slam(seq, out: str | Path, *, method_name: str, config: SlamConfig, pres
 
     Writes the estimated ``T_tau`` of every processed frame (TUM, exposure-end stamps), the
     keyframes, LDR renders of the sharp latent image at ``T_tau`` for every processed frame at
-    the sequence's resolution, the map (``map.ply``), timing, ``slam_stats.json`` (divergences,
-    map size) and the log. On any exception (including Ctrl-C) the folder is marked failed.
+    the sequence's resolution, the map (``map.ply``) with what reproduces the renders from it
+    (``appearance.json``: CRF, camera, per-frame exposure; :mod:`egs_bench.slam.appearance`),
+    timing, ``slam_stats.json`` (divergences, map size) and the log. On any exception
+    (including Ctrl-C) the folder is marked failed.
     """
     device = _pick_device(device)
     n = len(seq) if max_frames is None else max(1, min(len(seq), int(max_frames)))
@@ -69,14 +72,19 @@ def run_slam(seq, out: str | Path, *, method_name: str, config: SlamConfig, pres
         result = system.run(n, on_frame=on_frame)
         total_wall = time.perf_counter() - t_start
         bar.close()
-        poses_wc = np.stack([invert_pose(s.pose1_cw.detach().cpu().numpy())
-                             for s in result.states])
+        poses_wc = np.stack([invert_pose(s.pose1_cw) for s in result.states])
         run.write_trajectory(np.asarray(seq.timestamps_s[:n]), poses_wc)
         run.write_keyframes(result.keyframes)
         render_fps = _write_renders(run, system, result, seq)
         run.write_timing(total_wall_s=total_wall,
                          per_frame_s=[r.wall_s for r in result.reports], render_fps=render_fps)
-        result.gmap.save_ply(run.path / "map.ply")
+        result.gmap.save_ply(run.path / MAP_FILE)
+        write_appearance(run.path / APPEARANCE_FILE, Appearance(
+            system.crf, seq.intrinsics, config.near_plane,
+            np.array([s.index for s in result.states]),
+            np.asarray(seq.timestamps_s[:n], dtype=np.float64),
+            np.array([s.exp_a for s in result.states]),
+            np.array([s.exp_b for s in result.states])))
         stats = {"frames": n, "keyframes": len(result.keyframes),
                  "gaussians": len(result.gmap), "divergences": result.divergences,
                  "tracking_iterations": [r.iterations for r in result.reports],
@@ -100,8 +108,7 @@ def _write_renders(run: RunFolder, system: SlamSystem, result, seq) -> float:
         t = time.perf_counter()
         res = render_views(result.gmap, s.pose1_cw[None], K, full.width, full.height,
                            system.cfg)
-        ldr = system.crf(res.rgb[0]).clamp(0, 1)
+        img = ldr8(system.crf, res.rgb[0])
         elapsed += time.perf_counter() - t
-        img = (ldr.cpu().numpy() * 255.0 + 0.5).astype(np.uint8)
         run.write_render(s.index, img)
     return len(result.states) / elapsed if elapsed > 0 else float("nan")

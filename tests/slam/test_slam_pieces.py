@@ -5,7 +5,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import torch
-from scipy.linalg import expm
 from scipy.spatial.transform import Rotation
 
 from egs_bench.geometry import interpolate_pose, invert_pose
@@ -15,36 +14,7 @@ from egs_bench.slam import exposure, keyframes, losses
 from egs_bench.slam.config import cpu_preset
 from egs_bench.slam.crf import make_crf
 from egs_bench.slam.frames import FrameObs
-from egs_bench.slam.lie import invert_rigid, se3_exp, so3_exp, so3_log
-from egs_bench.slam.render_model import frame_loss
-
-
-def _hat6(xi: np.ndarray) -> np.ndarray:
-    rho, th = xi[:3], xi[3:]
-    m = np.zeros((4, 4))
-    m[:3, :3] = [[0, -th[2], th[1]], [th[2], 0, -th[0]], [-th[1], th[0], 0]]
-    m[:3, 3] = rho
-    return m
-
-
-@pytest.mark.parametrize("scale", [0.0, 1e-7, 1e-3, 0.5, 2.0])
-def test_se3_exp_matches_matrix_exponential(scale: float) -> None:
-    rng = np.random.default_rng(0)
-    xi = rng.normal(size=6) * scale
-    got = se3_exp(torch.tensor(xi)).numpy()
-    np.testing.assert_allclose(got, expm(_hat6(xi)), atol=1e-12)
-
-
-def test_so3_log_inverts_exp_and_has_finite_grad_at_zero() -> None:
-    rng = np.random.default_rng(1)
-    for scale in (1e-8, 1e-3, 1.0, 2.5):
-        v = torch.tensor(rng.normal(size=3) * scale)
-        np.testing.assert_allclose(so3_log(so3_exp(v)).numpy(), v.numpy(), atol=1e-10)
-    z = torch.zeros(3, dtype=torch.float64, requires_grad=True)
-    so3_log(so3_exp(z)).sum().backward()
-    assert torch.isfinite(z.grad).all()
-    x = torch.zeros(6, dtype=torch.float64, requires_grad=True)
-    assert torch.autograd.gradcheck(lambda t: se3_exp(t), (x,))
+from egs_bench.slam.render_model import blur_loss, prepare_targets, stack_targets
 
 
 def _random_pose(rng: np.random.Generator, rot_scale: float = 1.0) -> np.ndarray:
@@ -54,22 +24,16 @@ def _random_pose(rng: np.random.Generator, rot_scale: float = 1.0) -> np.ndarray
     return p
 
 
-def test_interpolation_matches_numpy_slerp_lerp_and_is_differentiable() -> None:
+def test_exposure_path_matches_numpy_slerp_lerp() -> None:
+    """Sub-poses equal geometry.interpolate_pose (scipy slerp + lerp of camera-to-world poses);
+    their Jacobians are tested in test_pose_algebra.py."""
     rng = np.random.default_rng(2)
     a_wc = _random_pose(rng)
     b_wc = a_wc @ _random_pose(rng, 0.2)
     fr = np.array([0.0, 0.25, 0.5, 0.9, 1.0])
     expect_wc = interpolate_pose(a_wc, b_wc, fr)
-    got_cw = exposure.interpolate_w2c(torch.tensor(invert_pose(a_wc)),
-                                      torch.tensor(invert_pose(b_wc)), torch.tensor(fr))
-    np.testing.assert_allclose(invert_rigid(got_cw).numpy(), expect_wc, atol=1e-10)
-    xi = torch.zeros(12, dtype=torch.float64, requires_grad=True)
-    a_cw, b_cw = torch.tensor(invert_pose(a_wc)), torch.tensor(invert_pose(b_wc))
-
-    def f(x: torch.Tensor) -> torch.Tensor:
-        return exposure.interpolate_w2c(se3_exp(x[:6]) @ a_cw, se3_exp(x[6:]) @ b_cw,
-                                        torch.tensor(fr))
-    assert torch.autograd.gradcheck(f, (xi,))
+    got_cw, _ = exposure.exposure_path(invert_pose(a_wc), invert_pose(b_wc), fr)
+    np.testing.assert_allclose(invert_pose(got_cw), expect_wc, atol=1e-10)
 
 
 def test_subpose_fractions_equal_event_counts_and_uniform_fallback() -> None:
@@ -136,48 +100,113 @@ def test_crf_default_start_is_the_identity_with_leaky_ends() -> None:
     np.testing.assert_allclose(ends, [-0.02, 1.0 + 0.01 - 0.01 / 2.0], atol=1e-12)
 
 
-def test_losses_against_hand_computation() -> None:
-    pred = torch.zeros(2, 2, 3, dtype=torch.float64)
-    obs = torch.zeros(2, 2, 3, dtype=torch.float64)
-    obs[0, 0] = torch.tensor([0.3, 0.6, 0.9])  # |diff| sum 1.8
-    obs[1, 1] = torch.tensor([0.003, 0.003, 0.003])  # near black -> masked by the boundary mask
-    mask = losses.rgb_boundary_mask(obs)
-    assert mask.tolist() == [[True, False], [False, False]]
-    assert losses.photometric_l1(pred, obs, mask).item() == pytest.approx(1.8 / 12)
-    w = torch.full((2, 2), 0.5, dtype=torch.float64)
-    assert losses.photometric_l1(pred, obs, mask, w).item() == pytest.approx(0.9 / 12)
+def _raster(rgb: torch.Tensor, depth: torch.Tensor, alpha: torch.Tensor | None = None):
+    """A stand-in RasterResult with the given renders [C, H, W, 3] / [C, H, W]."""
+    from egs_bench.render.rasterize import RasterResult
 
-    d_obs = torch.tensor([[1.0, 2.0], [0.0, 4.0]], dtype=torch.float64)
+    a = torch.ones_like(depth) if alpha is None else alpha
+    return RasterResult(rgb, depth, depth / a, a, None, None, None, None)
+
+
+def _obs(rgb: torch.Tensor, depth: torch.Tensor, fractions: list[float],
+         events: torch.Tensor | None = None) -> FrameObs:
+    return FrameObs(0, rgb, depth, losses.rgb_boundary_mask(rgb), losses.depth_valid_mask(depth),
+                    None, np.array(fractions), events, 0)
+
+
+def test_losses_against_hand_computation() -> None:
+    f64 = torch.float64
+    cfg = cpu_preset().replace(lambda_id=1.0, lambda_i=1.0, lambda_d=1.0, lambda_e=1.0,
+                               lambda_ne=0.5, expected_depth=False, exposure_compensation=False)
+    identity = make_crf("identity")
+    obs_rgb = torch.zeros(2, 2, 3, dtype=f64)
+    obs_rgb[0, 0] = torch.tensor([0.3, 0.6, 0.9])  # |diff| sum 1.8
+    obs_rgb[1, 1] = torch.tensor([0.003, 0.003, 0.003])  # near black -> masked by the boundary mask
+    assert losses.rgb_boundary_mask(obs_rgb).tolist() == [[True, False], [False, False]]
+    d_obs = torch.tensor([[1.0, 2.0], [0.0, 4.0]], dtype=f64)
+    # three sub-poses: depth errors +0.5, +0.1, -0.3 on three valid pixels
     d_pred = torch.stack([d_obs + 0.5, d_obs + 0.1, d_obs - 0.3])
-    dm = losses.depth_valid_mask(d_obs)
-    # three valid pixels, per pose mean over 4 pixels: 1.5/4, 0.3/4, 0.9/4 -> min 0.075
-    assert losses.min_depth_loss(d_pred, d_obs, dm).item() == pytest.approx(0.075)
-    # Per-sub-pose masks [M, H, W] (tracking: valid depth and rendered opacity > 0.95); here the
-    # second pose's pixel (0, 0) is masked: 0.2/4 for it, so the min is still 0.2/4 = 0.05.
-    per_pose = dm[None].repeat(3, 1, 1)
-    per_pose[1, 0, 0] = False
-    assert losses.min_depth_loss(d_pred, d_obs, per_pose).item() == pytest.approx(0.05)
-    assert losses.min_depth_loss(d_pred, d_obs, dm[None]).item() == pytest.approx(0.075)
-    with pytest.raises(ValueError):
-        losses.min_depth_loss(d_pred, d_obs, dm[:, :1])
+    res = _raster(torch.zeros(3, 2, 2, 3, dtype=f64), d_pred)
+    obs = _obs(obs_rgb, d_obs, [0.0, 0.5, 1.0])
+    t = blur_loss(res, prepare_targets(obs, cfg, (0.25, 0.3), tracking=False, use_events=False),
+                  identity, None, cfg, tracking=False, eps=1e-3, terms=True)
+    assert t["photometric"].item() == pytest.approx(1.8 / 12)
+    # per pose mean over 4 pixels: 1.5/4, 0.3/4, 0.9/4 -> min 0.075
+    assert t["depth"].item() == pytest.approx(0.075)
+    assert t["total"].item() == pytest.approx(1.8 / 12 + 0.075)
+    # Tracking masks: rendered opacity < 0.95 drops the second pose's pixel (0, 0) from the
+    # depth term (0.2/4 then, so the min is 0.05) and halves the photometric weight there.
+    alpha = torch.ones(3, 2, 2, dtype=f64)
+    alpha[1, 0, 0] = 0.5
+    res_t = _raster(torch.zeros(3, 2, 2, 3, dtype=f64), d_pred, alpha)
+    t = blur_loss(res_t, prepare_targets(obs, cfg, (0.25, 0.3), tracking=True, use_events=False),
+                  identity, None, cfg, tracking=True, eps=1e-3, terms=True)
+    assert t["depth"].item() == pytest.approx(0.05)
+    assert t["photometric"].item() == pytest.approx(1.8 * (2.5 / 3) / 12)
+    # Exposure compensation exp(a) I + b on the prediction: with a = log 2, b = 0.1 a black
+    # render predicts 0.1 everywhere.
+    t = blur_loss(res, prepare_targets(obs, cfg, (0.25, 0.3), tracking=False, use_events=False),
+                  identity, torch.tensor([[np.log(2.0), 0.1]], dtype=f64), cfg, tracking=False,
+                  eps=1e-3, terms=True)
+    assert t["photometric"].item() == pytest.approx((0.2 + 0.5 + 0.8) / 12)
 
     # Event maps: two renders of a 1x2 image with luma 0.5 -> 0.8 and 0.4 -> 0.4.
     eps = 1e-3
-    hdr = torch.tensor([[[[0.5] * 3, [0.4] * 3]], [[[0.8] * 3, [0.4] * 3]]], dtype=torch.float64)
+    hdr = torch.tensor([[[[0.5] * 3, [0.4] * 3]], [[[0.8] * 3, [0.4] * 3]]], dtype=f64)
     pm = losses.rendered_event_maps(hdr, eps)
     expect = np.log(0.8 + eps) - np.log(0.5 + eps)
     assert pm[0, 0, 0].item() == pytest.approx(expect)
     assert pm[0, 0, 1].item() == pytest.approx(0.0, abs=1e-12)
-    ev = torch.tensor([[[2, 0]]])
-    pm2 = pm + torch.tensor([[[0.0, 0.1]]], dtype=torch.float64)
-    l_he, l_ne = losses.event_loss(pm2, ev, theta_pos=0.25, theta_neg=0.3)
-    assert l_he.item() == pytest.approx(abs(0.5 - expect) / 2)
-    assert l_ne.item() == pytest.approx(0.1 / 2)
-    l_he_neg, _ = losses.event_loss(pm2, -ev, theta_pos=0.25, theta_neg=0.3)
-    assert l_he_neg.item() == pytest.approx(abs(-0.6 - expect) / 2)
+    # Observed: 2 positive events at pixel 0, none at pixel 1; the render at pixel 1 changes
+    # by 0.1 in log luma (an error of the no-event loss).
+    hdr2 = hdr.clone()
+    hdr2[1, 0, 1] = (0.4 + eps) * np.exp(0.1) - eps
+    one = torch.ones(1, 2, dtype=f64)
+    for sign, theta in ((1, 0.25), (-1, 0.3)):
+        ev = _obs(torch.full((1, 2, 3), 0.5, dtype=f64), one, [0.0, 1.0],
+                  torch.tensor([[[2 * sign, 0]]]))
+        res_e = _raster(hdr2, torch.ones(2, 1, 2, dtype=f64))
+        t = blur_loss(res_e, prepare_targets(ev, cfg, (0.25, 0.3), tracking=False,
+                                             use_events=True), identity, None, cfg,
+                      tracking=False, eps=eps, terms=True)
+        assert t["event_he"].item() == pytest.approx(abs(2 * sign * theta - expect) / 2)
+        assert t["event_ne"].item() == pytest.approx(0.1 / 2)
+        no_events = blur_loss(res_e, prepare_targets(ev, cfg, (0.25, 0.3), tracking=False,
+                                                     use_events=False), identity, None, cfg,
+                              tracking=False, eps=eps)
+        # total = photometric + depth + lambda_E (L_HE + lambda_NE L_NE)
+        assert t["total"].item() == pytest.approx(
+            no_events.item() + t["event_he"].item() + 0.5 * t["event_ne"].item())
 
-    s = torch.tensor([[1.0, 2.0, 3.0], [2.0, 2.0, 2.0]], dtype=torch.float64)
+    s = torch.tensor([[1.0, 2.0, 3.0], [2.0, 2.0, 2.0]], dtype=f64)
     assert losses.isotropic_loss(s).item() == pytest.approx((1 + 0 + 1) / 6)
+
+
+def test_batched_loss_is_the_sum_of_per_frame_losses() -> None:
+    """Mapping evaluates V frames in one call; it must equal the sum of single-frame calls."""
+    rng = torch.Generator().manual_seed(0)
+    f64 = torch.float64
+    cfg = cpu_preset()
+    crf = make_crf("learnable", 8, 0.01, "srgb")
+    frames, renders = [], []
+    for _ in range(3):
+        rgb = torch.rand(6, 5, 3, generator=rng, dtype=f64)
+        depth = 1 + torch.rand(6, 5, generator=rng, dtype=f64)
+        ev = torch.randint(-2, 3, (2, 6, 5), generator=rng)
+        frames.append(_obs(rgb, depth, [0.0, 0.4, 1.0], ev))
+        renders.append((torch.rand(3, 6, 5, 3, generator=rng, dtype=f64) * 1.5,
+                        1 + torch.rand(3, 6, 5, generator=rng, dtype=f64),
+                        torch.rand(3, 6, 5, generator=rng, dtype=f64)))
+    exp_ab = torch.rand(3, 2, generator=rng, dtype=f64) * 0.1
+    for tracking in (False, True):
+        targets = [prepare_targets(o, cfg, (0.25, 0.3), tracking=tracking, use_events=True)
+                   for o in frames]
+        pairs = enumerate(zip(renders, targets, strict=True))
+        single = sum(blur_loss(_raster(*r), t, crf, exp_ab[i:i + 1], cfg, tracking=tracking,
+                               eps=1e-3) for i, (r, t) in pairs)
+        batched = blur_loss(_raster(*(torch.cat(x) for x in zip(*renders, strict=True))),
+                            stack_targets(targets), crf, exp_ab, cfg, tracking=tracking, eps=1e-3)
+        assert batched.item() == pytest.approx(single.item(), rel=1e-12)
 
 
 def test_edge_mask_marks_edges_only() -> None:
@@ -242,16 +271,16 @@ def test_window_removal_overlap_then_dso() -> None:
 def test_normalised_depth_keeps_alpha_in_the_graph() -> None:
     """L_D on the rasteriser's sum(w z) / sum(w): a lone surface renders the same normalised
     depth whatever its opacity, so the depth term must not move the opacity (with alpha
-    detached it lowered it: the holes of docs/notes/slam.md finding 16)."""
+    detached it lowered every opacity where the depth was too long and eroded maps into
+    holes)."""
     h, w = 4, 5
     ones = torch.ones(h, w, dtype=torch.bool)
-    obs = FrameObs(0, torch.full((h, w, 3), 0.5), torch.full((h, w), 2.0), ones, ones, None,
-                   torch.tensor([1.0]), None, 0)
+    obs = FrameObs(0, torch.full((h, w, 3), 0.5, dtype=torch.float64),
+                   torch.full((h, w), 2.0, dtype=torch.float64), ones, ones, None,
+                   np.array([1.0]), None, 0)
     cfg = cpu_preset().replace(n_segments=1, event_tracking=False, event_mapping=False,
                                exposure_compensation=False, expected_depth=True, lambda_i=0.0)
     crf = make_crf("identity", 16, 0.01, "linear")
-    zero = torch.zeros(())
-    kw = dict(use_events=False, theta=(0.25, 0.25), eps=1e-3)
     f64 = torch.float64
     K = torch.tensor([[[4.0, 0.0, 2.5], [0.0, 4.0, 2.0], [0.0, 0.0, 1.0]]], dtype=f64)
     for tracking in (True, False):
@@ -261,13 +290,16 @@ def test_normalised_depth_keeps_alpha_in_the_graph() -> None:
                         torch.tensor([[50.0, 50.0, 1e-3]], dtype=f64), opacity,
                         torch.full((1, 3), 0.5, dtype=f64), torch.eye(4, dtype=f64)[None], K,
                         w, h, backend="reference")
-        parts = frame_loss(res, obs, crf, zero, zero, cfg, tracking=tracking, **kw)
-        assert parts.depth == pytest.approx(0.5)
-        (grad,) = torch.autograd.grad(parts.total, opacity, retain_graph=True)
+        targets = prepare_targets(obs, cfg, (0.25, 0.25), tracking=tracking, use_events=False)
+        parts = blur_loss(res, targets, crf, None, cfg, tracking=tracking, eps=1e-3,
+                          terms=True)
+        assert parts["depth"].item() == pytest.approx(0.5)
+        (grad,) = torch.autograd.grad(parts["total"], opacity, retain_graph=True)
         assert abs(float(grad)) < 1e-9
         detached = res.depth / res.alpha.detach()
         (grad_detached,) = torch.autograd.grad((detached - 2.0).abs().mean(), opacity)
         assert float(grad_detached) > 0.1  # the old form: descent lowers the opacity
-    plain = frame_loss(res, obs, crf, zero, zero, cfg.replace(expected_depth=False),
-                       tracking=False, **kw)
-    assert plain.depth == pytest.approx(0.97 * 2.5 - 2.0, abs=0.01)
+    plain = blur_loss(res, prepare_targets(obs, cfg, (0.25, 0.25), tracking=False,
+                                           use_events=False), crf, None,
+                      cfg.replace(expected_depth=False), tracking=False, eps=1e-3, terms=True)
+    assert plain["depth"].item() == pytest.approx(0.97 * 2.5 - 2.0, abs=0.01)

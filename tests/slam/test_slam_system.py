@@ -112,7 +112,7 @@ def test_divergence_falls_back_to_retracking_then_previous_pose(tiny_sequence: P
         res = real(gmap, crf, obs, init, *args, lr_scale=lr_scale, **kw)
         # frame 1: the first attempt jumps 2 m; frame 2: both attempts jump
         if (obs.index == 1 and lr_scale == 1.0) or obs.index == 2:
-            res.state.pose1_cw = res.state.pose1_cw.clone()
+            res.state.pose1_cw = res.state.pose1_cw.copy()
             res.state.pose1_cw[0, 3] += 2.0
         return res
 
@@ -216,7 +216,7 @@ def test_anchored_exposure_places_t0_on_the_path_from_the_previous_frame(
     tracked frame is the pose at f0 = (t_start - previous t_end) / (t_end - previous t_end) on
     the straight path from the previous frame's T_tau to this frame's T_tau. Otherwise T_0 is
     free and off that path."""
-    from egs_bench.slam.exposure import interpolate_w2c
+    from egs_bench.slam.exposure import exposure_path
     from egs_bench.slam.system import SlamSystem
 
     seq = Sequence.open(tiny_sequence)
@@ -226,10 +226,10 @@ def test_anchored_exposure_places_t0_on_the_path_from_the_previous_frame(
     for i in range(1, len(seq)):
         t0, t1 = seq.exposure(i)
         prev_end = seq.exposure(i - 1)[1]
-        f0 = torch.tensor([(t0 - prev_end) / (t1 - prev_end)], dtype=torch.float64)
-        expect = interpolate_w2c(states[i - 1].pose1_cw, states[i].pose1_cw, f0)[0]
-        assert not torch.equal(states[i].pose0_cw, states[i].pose1_cw)
-        off_path = float((states[i].pose0_cw - expect).abs().max())
+        f0 = np.array([(t0 - prev_end) / (t1 - prev_end)])
+        expect = exposure_path(states[i - 1].pose1_cw, states[i].pose1_cw, f0)[0][0]
+        assert not np.array_equal(states[i].pose0_cw, states[i].pose1_cw)
+        off_path = float(np.abs(states[i].pose0_cw - expect).max())
         if anchored:
             assert off_path < 1e-9
         else:
@@ -301,7 +301,8 @@ def test_cli_run_set_overrides_reach_the_run_config(tiny_sequence: Path, tmp_pat
 
 
 def test_final_refinement_lowers_keyframe_loss_and_keeps_poses(tiny_sequence: Path) -> None:
-    from egs_bench.slam.render_model import frame_loss, render_views, subposes
+    from egs_bench.slam.exposure import exposure_path
+    from egs_bench.slam.render_model import blur_loss, prepare_targets, render_views
     from egs_bench.slam.system import SlamSystem
 
     seq = Sequence.open(tiny_sequence)
@@ -310,16 +311,19 @@ def test_final_refinement_lowers_keyframe_loss_and_keeps_poses(tiny_sequence: Pa
     result = system.run(len(seq))
     states = {k: result.states[k] for k in result.keyframes}
     obs = {k: system._obs(k) for k in result.keyframes}
-    poses = {k: (s.pose0_cw.clone(), s.pose1_cw.clone()) for k, s in states.items()}
+    poses = {k: (s.pose0_cw.copy(), s.pose1_cw.copy()) for k, s in states.items()}
 
     def keyframe_loss() -> float:
         total = 0.0
         for k, s in states.items():
-            res = render_views(system.gmap, subposes(s.pose0_cw, s.pose1_cw, obs[k].fractions),
-                               system.K, system.cam.width, system.cam.height, cfg)
-            a, b = torch.tensor(s.exp_a), torch.tensor(s.exp_b)
-            total += frame_loss(res, obs[k], system.crf, a, b, cfg, tracking=False,
-                                use_events=True, theta=system.theta, eps=system.eps).total.item()
+            views = exposure_path(s.pose0_cw, s.pose1_cw, obs[k].fractions)[0]
+            res = render_views(system.gmap, views, system.K, system.cam.width,
+                               system.cam.height, cfg)
+            targets = prepare_targets(obs[k], cfg, system.theta, tracking=False,
+                                      use_events=True)
+            exp_ab = torch.tensor([[s.exp_a, s.exp_b]])
+            total += blur_loss(res, targets, system.crf, exp_ab, cfg, tracking=False,
+                               eps=system.eps).item()
         return total / len(states)
 
     before = keyframe_loss()
@@ -327,5 +331,6 @@ def test_final_refinement_lowers_keyframe_loss_and_keeps_poses(tiny_sequence: Pa
     after = keyframe_loss()
     assert after < 0.9 * before, (before, after)
     for k, s in states.items():
-        assert torch.equal(s.pose0_cw, poses[k][0]) and torch.equal(s.pose1_cw, poses[k][1])
+        assert np.array_equal(s.pose0_cw, poses[k][0]) and np.array_equal(s.pose1_cw,
+                                                                            poses[k][1])
     assert not system.gmap.means.requires_grad

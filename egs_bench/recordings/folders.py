@@ -1,0 +1,136 @@
+"""Recordings stored as plain files: an image folder with a times file, a 16-bit depth PNG
+folder with a times file, and a TUM trajectory of mocap poses.
+
+Times files hold one row per image, in the images' name order; ``#`` starts a comment. Frame
+times: two columns ``t_start t_end`` (the exposure window) or one column (a stamp whose meaning
+and exposure are given separately). Depth times: one column. The unit is chosen by the caller
+(microseconds by default; ``s`` and ``ns`` accepted).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from egs_bench.errors import InputError
+from egs_bench.geometry import read_tum
+from egs_bench.recordings.streams import DepthStream, FrameStream, PoseTrack, exposure_windows
+
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
+UNIT_TO_US = {"us": 1.0, "s": 1e6, "ms": 1e3, "ns": 1e-3}
+
+
+def list_images(folder: Path) -> list[Path]:
+    """Image files of ``folder`` sorted by name."""
+    if not folder.is_dir():
+        raise InputError(folder, "image folder not found")
+    files = sorted(p for p in folder.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
+    if not files:
+        raise InputError(folder, f"holds no image ({', '.join(IMAGE_SUFFIXES)})")
+    return files
+
+
+def read_times(path: Path, columns: tuple[int, ...], unit: str = "us") -> np.ndarray:
+    """A whitespace/comma separated times file -> int64 microseconds [N, C].
+
+    Raises:
+        InputError: missing file, wrong column count, non-numbers, unsorted times.
+    """
+    if unit not in UNIT_TO_US:
+        raise InputError(path, f"unknown time unit {unit!r} (us, ms, s, ns)")
+    if not path.is_file():
+        raise InputError(path, "times file not found")
+    rows = []
+    for lineno, line in enumerate(path.read_text().splitlines(), start=1):
+        line = line.split("#", 1)[0].strip()
+        if not line:
+            continue
+        parts = line.replace(",", " ").split()
+        if len(parts) not in columns:
+            raise InputError(path, f"line {lineno}: expected {' or '.join(map(str, columns))} "
+                                   f"columns, found {len(parts)}")
+        try:
+            rows.append([float(v) for v in parts])
+        except ValueError as exc:
+            raise InputError(path, f"line {lineno}: not a number ({exc})") from None
+    if not rows:
+        raise InputError(path, "no times listed")
+    if len({len(r) for r in rows}) != 1:
+        raise InputError(path, "rows have different numbers of columns")
+    t = np.round(np.asarray(rows, dtype=np.float64) * UNIT_TO_US[unit]).astype(np.int64)
+    if (np.diff(t[:, 0]) < 0).any():
+        raise InputError(path, "times are not sorted")
+    return t
+
+
+def frame_folder(folder: Path, times: Path, unit: str, stamp: str,
+                 exposure_us: int | None) -> FrameStream:
+    """Frames from an image folder and a times file (see the module docstring)."""
+    files = list_images(folder)
+    t = read_times(times, (1, 2), unit)
+    if len(t) != len(files):
+        raise InputError(times, f"{len(t)} times for {len(files)} images in {folder}")
+    if t.shape[1] == 2:
+        t0, t1 = t[:, 0], t[:, 1]
+    elif exposure_us is None:
+        raise InputError(times, "one time per frame: also give the exposure time (and what the "
+                                "time marks: start, mid or end)")
+    else:
+        t0, t1 = exposure_windows(t[:, 0], int(exposure_us), stamp)
+    first = _read_image(files[0], cv2.IMREAD_COLOR)
+    h, w = first.shape[:2]
+
+    def load(indices: list[int]) -> Iterator[tuple[int, np.ndarray]]:
+        for i in indices:
+            img = _read_image(files[i], cv2.IMREAD_COLOR)
+            if img.shape[:2] != (h, w):
+                raise InputError(files[i], f"image is {img.shape[1]}x{img.shape[0]}, the first "
+                                           f"is {w}x{h}")
+            yield i, cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
+
+    return FrameStream(str(folder), t0, t1, w, h, load)
+
+
+def depth_folder(folder: Path, times: Path, unit: str, depth_scale: float) -> DepthStream:
+    """16-bit depth PNGs (``value / depth_scale`` metres, 0 = invalid) and their times."""
+    files = list_images(folder)
+    t = read_times(times, (1,), unit)[:, 0]
+    if len(t) != len(files):
+        raise InputError(times, f"{len(t)} times for {len(files)} depth images in {folder}")
+    first = _read_depth(files[0], depth_scale)
+    h, w = first.shape
+
+    def load(indices: list[int]) -> Iterator[tuple[int, np.ndarray]]:
+        for i in indices:
+            d = _read_depth(files[i], depth_scale)
+            if d.shape != (h, w):
+                raise InputError(files[i], f"depth is {d.shape[1]}x{d.shape[0]}, the first is "
+                                           f"{w}x{h}")
+            yield i, d
+
+    return DepthStream(str(folder), t, w, h, load)
+
+
+def tum_track(path: Path) -> PoseTrack:
+    """Mocap poses from a TUM file (``t tx ty tz qx qy qz qw``, seconds, body-to-world)."""
+    traj = read_tum(path, min_poses=2)
+    t = np.round(traj.timestamps * 1e6).astype(np.int64)
+    return PoseTrack(str(path), t, traj.poses)
+
+
+def _read_image(path: Path, flags: int) -> np.ndarray:
+    img = cv2.imread(str(path), flags)
+    if img is None:
+        raise InputError(path, "unreadable image")
+    return img
+
+
+def _read_depth(path: Path, depth_scale: float) -> np.ndarray:
+    raw = _read_image(path, cv2.IMREAD_UNCHANGED)
+    if raw.dtype != np.uint16 or raw.ndim != 2:
+        raise InputError(path, f"depth images must be single-channel 16-bit PNGs, got "
+                               f"{raw.dtype} with shape {raw.shape}")
+    return (raw.astype(np.float64) / depth_scale).astype(np.float32)
