@@ -119,8 +119,9 @@ def wrap_latex_table(tabular: Sequence[str], *, caption: str | None, label: str 
     env = "table*" if width == "page" else "table"
     limit = r"\textwidth" if width == "page" else r"\columnwidth"
     lines = [rf"\begin{{{env}}}[t]", r"\centering"]
-    if caption:
+    if caption:  # caption above the table: booktabs' \toprule needs a little room below it
         lines.append(rf"\caption{{{caption}}}")
+        lines.append(r"\smallskip")
     if label:
         lines.append(rf"\label{{{label}}}")
     if width == "natural":

@@ -55,10 +55,12 @@ EDI_METHODS = ("monogs", "monogs-edi")
 
 @dataclass(frozen=True)
 class Column:
-    """A value column: its group header (``""`` for none) and its metric."""
+    """A value column: its group header (``""`` for none), its metric (``""``: the row's) and a
+    header text replacing the metric's (``""``: the metric's label with its arrow)."""
 
     group: str
     key: str
+    title: str = ""
 
 
 @dataclass
@@ -146,8 +148,8 @@ def _legend(table: PaperTable, pm: str = "±") -> str:
 def render_markdown(table: PaperTable) -> str:
     """GitHub Markdown: group names go into the column headers; footnotes follow."""
     ranks = table.ranks()
-    heads = list(table.stub_headers) + [
-        f"{c.group} {header(c.key, 'md') if c.key else ''}".strip() for c in table.columns]
+    heads = [h.replace("\n", " ") for h in table.stub_headers] + [
+        c.title or f"{c.group} {header(c.key, 'md')}".strip() for c in table.columns]
     rows = [list(table.stubs[r]) + [_cell_text(table, r, c, ranks, "md")
                                     for c in range(len(table.columns))]
             for r in range(len(table.stubs))]
@@ -158,6 +160,12 @@ def render_markdown(table: PaperTable) -> str:
     notes = "\n".join(f"{i}. {n}" for i, n in enumerate(table.notes, start=1))
     return (f"**{table.caption}**\n\n{text}\n\n{_legend(table)}\n"
             + (f"{notes}\n" if notes else ""))
+
+
+def _latex_head(text: str) -> str:
+    """A stub header; a newline in it stacks the lines (LaTeX kernel's ``shortstack``)."""
+    parts = [latex_escape(p) for p in text.split("\n")]
+    return parts[0] if len(parts) == 1 else r"\shortstack{" + r"\\".join(parts) + "}"
 
 
 def _latex_stub(text: str) -> str:
@@ -179,8 +187,8 @@ def render_latex(table: PaperTable, label: str | None = None, width: str = "auto
                 rules.append(rf"\cmidrule(lr){{{col}-{col + span - 1}}}")
             col += span
         tab += [" & ".join(cells) + r" \\", " ".join(rules)]
-    head = [latex_escape(h) for h in table.stub_headers] + [
-        header(c.key, "latex") if c.key else latex_escape(c.group) for c in table.columns]
+    head = [_latex_head(h) for h in table.stub_headers] + [
+        latex_escape(c.title) if c.title else header(c.key, "latex") for c in table.columns]
     tab += [" & ".join(head) + r" \\", r"\midrule"]
     body = []
     for r, stub in enumerate(table.stubs):
@@ -273,7 +281,7 @@ def rendering_table(board: Leaderboard) -> PaperTable | None:
         return None
     seqs = board.sequences + (["Avg."] if len(board.sequences) > 1 else [])
     has_fps = any(_fps(board, r) is not None for r in rows)
-    columns = [Column(s, "") for s in seqs] + ([Column("", "render_fps")] if has_fps else [])
+    columns = [Column("", "", s) for s in seqs] + ([Column("", "render_fps")] if has_fps else [])
     stubs, values, markers, complete, row_keys, rules = [], [], [], [], [], set()
     for row in rows:
         if stubs:
@@ -341,7 +349,7 @@ def ablation_events_table(board: Leaderboard, full: str = "egs") -> PaperTable |
     notes = _partial_note(rows) + [f"Rows: {', '.join(r.label for r in rows)} (settings equal "
                                    f"to {full}'s except event tracking / mapping)."]
     return PaperTable("ablation_events", "Ablation: event information in tracking and mapping.",
-                      ["Event Tracking", "Event Mapping"], stubs, columns, values, markers,
+                      ["Event\nTracking", "Event\nMapping"], stubs, columns, values, markers,
                       complete, _down_columns(len(rows), len(columns)), notes=notes)
 
 
