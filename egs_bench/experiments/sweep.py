@@ -56,18 +56,21 @@ class SweepReport:
         return bool(len(self.summary)) and bool((self.summary["state"] == "done").all())
 
 
-def resolve_sequences(spec: SweepSpec, progress: bool = False) -> dict[str, Path]:
-    """Each sequence entry of the sweep -> its folder (generating built-in names once)."""
+def resolve_sequences(spec: SweepSpec, progress: bool = False, generate: bool = True
+                      ) -> dict[str, Path]:
+    """Each sequence entry of the sweep -> its folder (generating built-in names once, unless
+    ``generate`` is false)."""
     from egs_bench.datasets.registry import resolve_sequence
 
-    return {entry: Path(resolve_sequence(entry, progress=progress)) for entry in spec.sequences}
+    return {entry: Path(resolve_sequence(entry, generate=generate, progress=progress))
+            for entry in spec.sequences}
 
 
 def prepare(spec: SweepSpec, out: Path | None = None,
-            extra_options: Mapping[str, Any] | None = None, progress: bool = False
-            ) -> list[RunSpec]:
+            extra_options: Mapping[str, Any] | None = None, progress: bool = False,
+            generate: bool = True) -> list[RunSpec]:
     """Resolve the sequences and expand the grid into run specs."""
-    return expand(spec, resolve_sequences(spec, progress), out, extra_options)
+    return expand(spec, resolve_sequences(spec, progress, generate), out, extra_options)
 
 
 def _metrics(run_dir: Path) -> tuple[float, float]:
@@ -186,7 +189,7 @@ def run_sweep(spec: SweepSpec, *, out: Path | None = None,
     if backend not in BACKENDS:
         raise ConfigError(f"unknown backend {backend!r}; choose one of {', '.join(BACKENDS)}")
     out = (out or spec.out).resolve()
-    runs = prepare(spec, out, extra_options)
+    runs = prepare(spec, out, extra_options, generate=not (status_only or dry_run))
     selected = [r for r in runs if in_shard(r, shard)]
     outcomes: dict[str, Outcome] = {}
     if not status_only:

@@ -154,3 +154,53 @@ def test_sweep_time_limit_and_dry_run(sweep_dir, monkeypatch) -> None:
     assert "time limit of 0.15 min reached" in row["reason"]
     status = json.loads((sweep_dir / "out/runs/sa/good/seed0/status.json").read_text())
     assert status["state"] == "failed" and "Interrupted" in status["reason"]
+
+
+@pytest.mark.slow
+def test_sweep_of_a_builtin_method_with_named_settings(tmp_path, monkeypatch, tiny_sequence
+                                                        ) -> None:
+    """The real MonoGS-style method on the tiny plane sequence: overrides reach the run's
+    resolved configuration, and the settings names label the leaderboard rows."""
+    worker_env(monkeypatch)
+    monkeypatch.chdir(tmp_path)
+    sweep = _write(tmp_path / "b.yaml", {
+        "methods": ["monogs"], "sequences": [str(tiny_sequence)], "preset": "cpu",
+        "max_frames": 3, "settings": {"base": {}, "short": {"tracking_iters": 5}},
+        "local": {"jobs": 2}, "out": "out"})
+    report = run_sweep(load_sweep(sweep), say=lambda m: None)
+    assert (report.summary["state"] == "done").all(), report.summary_md
+    out = tmp_path / "out/runs/plane"
+    cfg_base = yaml.safe_load((out / "monogs__base/seed0/config.yaml").read_text())
+    cfg_short = yaml.safe_load((out / "monogs__short/seed0/config.yaml").read_text())
+    assert cfg_short["slam"]["tracking_iters"] == 5
+    assert cfg_base["slam"]["tracking_iters"] == cfg_short["slam"]["tracking_iters"] + 15  # cpu
+    record = json.loads((out / "monogs__short/seed0/sweep.json").read_text())
+    assert record["identity"]["resolved"] == cfg_short["slam"]
+    # the plane sequence's camera moves on a line: Umeyama alignment is degenerate, so the
+    # evaluation fails; the run stays done and the summary and the leaderboard say why
+    assert report.summary["reason"].str.contains("evaluation: .*Degenerate").all()
+    md = render_markdown(collect(tmp_path / "out/runs"))
+    assert "| monogs (base) " in md and "| monogs (short) " in md
+    assert "Umeyama alignment is not possible" in md
+
+
+def test_ctrl_c_stops_workers_and_they_rerun(sweep_dir) -> None:
+    sweep = _write(sweep_dir / "c.yaml", {"methods": ["sweep_fixtures:GOOD"],
+                                          "sequences": ["data/sa"], "seeds": [0],
+                                          "out": "out"})
+    proc = subprocess.Popen([*EGS_BENCH, "sweep", str(sweep)],
+                            env={**os.environ, "FAKE_SLEEP_S": "120"},
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    record = sweep_dir / "out/runs/sa/good/seed0/sweep.json"
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline and not (
+            record.is_file() and json.loads(record.read_text())["state"] == "running"):
+        time.sleep(0.2)
+    proc.send_signal(signal.SIGINT)  # Ctrl-C reaches the launcher only
+    out, _ = proc.communicate(timeout=60)
+    assert proc.returncode == 130, out
+    assert json.loads(record.read_text())["state"] == "interrupted"
+    assert "interrupted" in (sweep_dir / "out/sweep_summary.md").read_text()
+    again = run_sweep(load_sweep(sweep), say=lambda m: None)
+    assert again.summary["action"].tolist() == ["ran"]
+    assert again.summary["state"].tolist() == ["done"]
