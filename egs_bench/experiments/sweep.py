@@ -20,7 +20,8 @@ from typing import Any
 
 import pandas as pd
 
-from egs_bench.errors import ConfigError
+from egs_bench.errors import ConfigError, EgsBenchError
+from egs_bench.eval.results import metric_values
 from egs_bench.experiments.backends import Outcome, plan_slots, run_local, run_slurm
 from egs_bench.experiments.spec import RunSpec, SweepSpec, expand, in_shard
 from egs_bench.experiments.worker import RUN, decide, lock_is_held, read_record, run_state
@@ -74,14 +75,13 @@ def prepare(spec: SweepSpec, out: Path | None = None,
 
 
 def _metrics(run_dir: Path) -> tuple[float, float]:
+    """ATE [cm] and PSNR [dB] of a run's ``metrics.json`` (NaN where absent or unreadable)."""
+    path = run_dir / "metrics.json"
     try:
-        data = json.loads((run_dir / "metrics.json").read_text())
-        ate = float(data["ate"]["rmse_m"]) * 100.0
-        rendering = data.get("rendering") or {}
-        psnr = float(rendering["psnr_db"]) if rendering.get("psnr_db") is not None else math.nan
-        return ate, psnr
-    except (OSError, ValueError, KeyError, TypeError, UnicodeDecodeError):
+        values = metric_values(json.loads(path.read_text()), path)
+    except (OSError, ValueError, UnicodeDecodeError, EgsBenchError):
         return math.nan, math.nan
+    return 100.0 * values.get("ate", math.nan), values.get("psnr", math.nan)
 
 
 def run_row(spec: RunSpec, outcome: Outcome | None = None, invoked: bool = True

@@ -76,7 +76,10 @@ def write_record(run_dir: str | Path, record: dict[str, Any]) -> None:
 
 def run_state(run_dir: str | Path) -> str | None:
     """``status.json``'s state (``done``/``failed``/``running``/...), ``tracking_lost`` for a
-    tracking loss, ``None`` when there is no readable status."""
+    tracking loss, ``None`` when there is no readable status.
+
+    Unlike :meth:`RunFolder.read_status` this never raises: for deciding whether to rerun, an
+    unreadable status simply means "not finished"."""
     path = Path(run_dir) / "status.json"
     try:
         data = json.loads(path.read_text())
