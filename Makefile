@@ -9,7 +9,7 @@ export EGS_BENCH_CACHE := $(CURDIR)/.cache/egs_bench
 export MPLBACKEND := Agg
 export OMP_WAIT_POLICY := PASSIVE
 
-.PHONY: setup demo test lint bench regress regress-baseline clean
+.PHONY: setup demo test lint bench regress regress-baseline gpu-check clean
 
 setup: $(STAMP)
 
@@ -44,6 +44,11 @@ regress: setup
 regress-baseline: setup
 	$(BIN)/egs-bench sweep benchmarks/regress/sweep.yaml --force
 	$(BIN)/egs-bench regress benchmarks/regress/baseline.csv bench_out/regress --update
+
+# On a CUDA machine: builds gsplat, runs the CUDA tests, times egs/monogs (writes gpu_check.json).
+gpu-check:
+	$(BIN)/pip install -q -c constraints.txt -e ".[cuda]"
+	PYTHON=$(BIN)/python bash benchmarks/gpu_check.sh
 
 clean:
 	rm -rf $(VENV) .cache demo_out .pytest_cache .ruff_cache

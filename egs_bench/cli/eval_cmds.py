@@ -218,23 +218,57 @@ def plot_cmd(
 
 @app.command("import-run")
 def import_run_cmd(
-    estimate: Path = typer.Argument(..., help="External estimate, TUM format."),
+    source: Path = typer.Argument(..., help="External output: a TUM file, or the file / folder "
+                                            "the system wrote (see --from)."),
     out_dir: Path = typer.Argument(..., help="Run folder to create."),
-    method: str = typer.Option(..., "--method", "-m", help="Method name for leaderboards."),
-    sequence: str = typer.Option(..., "--sequence", "-s",
-                                 help="Sequence name for leaderboards."),
+    fmt: str = typer.Option("tum", "--from",
+                            help="What SOURCE is: tum, orbslam2 (CameraTrajectory.txt / "
+                                 "KeyFrameTrajectory.txt or their folder), photoslam (output "
+                                 "folder), monogs (result folder or trj_final.json), rampvo "
+                                 "(stamped_traj_estimate.txt)."),
+    export_dir: Path | None = typer.Option(None, "--export",
+                                           help="The egs-bench export the system ran on (maps "
+                                                "its stamps / frame ids to sequence frames)."),
+    method: str | None = typer.Option(None, "--method", "-m",
+                                      help="Method name for leaderboards (default: the "
+                                           "system's name; required for --from tum)."),
+    sequence: str | None = typer.Option(None, "--sequence", "-s",
+                                        help="Sequence name for leaderboards (default: the "
+                                             "exported sequence's)."),
     sequence_path: Path | None = typer.Option(None, "--sequence-path",
                                               help="Canonical sequence folder (GT + images)."),
     groundtruth: Path | None = typer.Option(None, "--groundtruth",
-                                            help="Ground-truth TUM file (no sequence folder)."),
+                                            help="--from tum: ground-truth TUM file (no "
+                                                 "sequence folder)."),
     renders: Path | None = typer.Option(None, "--renders",
                                         help="Folder of renders named <frame index>.png."),
+    render_ply: bool = typer.Option(False, "--render-ply",
+                                    help="--from monogs: render its point_cloud.ply at the "
+                                         "imported poses."),
+    quaternion: str = typer.Option("rampvo", "--quaternion",
+                                   help="--from rampvo: quaternion columns as RampVO writes "
+                                        "them (rampvo: qy qz qw qx) or wxyz."),
     overwrite: bool = typer.Option(False, "--overwrite", help="Replace an existing run folder."),
 ) -> None:
-    """Import an external system's trajectory (and renders) as a finished run folder."""
-    from egs_bench.baselines.import_runs import import_tum_run
+    """Import an external system's output (trajectory, renders) as a finished run folder."""
+    from egs_bench.baselines.import_runs import import_external_run, import_tum_run
+    from egs_bench.errors import ConfigError
 
-    run = import_tum_run(estimate, out_dir, method=method, sequence_name=sequence,
-                         sequence_path=sequence_path, groundtruth=groundtruth,
-                         renders_dir=renders, overwrite=overwrite)
-    _out.print(f"imported {method} on {sequence} into {run.path}")
+    if fmt == "tum":
+        if not method or not sequence:
+            raise ConfigError("--from tum needs --method and --sequence")
+        run = import_tum_run(source, out_dir, method=method, sequence_name=sequence,
+                             sequence_path=sequence_path, groundtruth=groundtruth,
+                             renders_dir=renders, overwrite=overwrite)
+    else:
+        if groundtruth is not None:
+            raise ConfigError(f"--groundtruth is for --from tum; --from {fmt} maps onto the "
+                              "sequence (--export or --sequence-path)")
+        run = import_external_run(source, out_dir, fmt=fmt, export_dir=export_dir,
+                                  method=method, sequence_name=sequence,
+                                  sequence_path=sequence_path, renders_dir=renders,
+                                  render_ply=render_ply, quaternion=quaternion,
+                                  overwrite=overwrite)
+    est = run.info.get("estimate")
+    what = f" (poses: {est['poses']}, renders: {est['renders']})" if est else ""
+    _out.print(f"imported {run.method} on {run.sequence_name} into {run.path}{what}")

@@ -17,12 +17,14 @@ def run_cmd(
     seq: str = typer.Option(..., "--seq", "-s",
                             help="Sequence folder, or a name under $EGS_BENCH_DATA "
                                  "(default ./data)."),
-    preset: str = typer.Option("paper", "--preset",
-                               help="Configuration preset: paper (full method, GPU-sized) or "
-                                    "cpu (same method, reduced resolution/iterations)."),
+    preset: str = typer.Option("auto", "--preset",
+                               help="Compute budget: auto (paper on CUDA, cpu on a CPU), "
+                                    "paper (the paper's iterations and resolution, GPU-sized) "
+                                    "or cpu (same method, reduced resolution/iterations)."),
     out: Path | None = typer.Option(None, "--out", "-o",
                                     help="Run folder to write (default runs/<method>/<seq>)."),
-    device: str = typer.Option("cpu", "--device", help="cpu or cuda."),
+    device: str = typer.Option("auto", "--device",
+                               help="auto (CUDA when present), cpu, cuda or cuda:N."),
     seed: int = typer.Option(0, "--seed", help="Random seed (CPU runs are deterministic)."),
     max_frames: int | None = typer.Option(None, "--max-frames",
                                           help="Process only the first N frames."),

@@ -173,7 +173,11 @@ class EventStream:
         validate: bool = True,
     ) -> None:
         import h5py
-        import hdf5plugin  # noqa: F401 (registers Blosc, Zstd, LZ4, ...: DSEC-style files use them)
+
+        try:  # registers Blosc, Zstd, LZ4, ...: DSEC-style files use them
+            import hdf5plugin  # noqa: F401
+        except ImportError:  # gzip files (ours) still read; others fail naming the filter
+            pass
 
         self.path = Path(path)
         self.width, self.height = int(width), int(height)

@@ -223,6 +223,7 @@ def export_replica_layout(
     depth_scale: float = REPLICA_DEPTH_SCALE,
     image_format: str = "jpg",
     jpeg_quality: int = 95,
+    jpeg_chroma_444: bool = False,
 ) -> Path:
     """Write an RGB-D + pose sequence in the NICE-SLAM Replica layout (atomically).
 
@@ -237,6 +238,7 @@ def export_replica_layout(
         depth_scale: PNG value per metre (Replica: 6553.5, so depths up to 10 m).
         image_format: ``"jpg"`` (as NICE-SLAM) or ``"png"`` (lossless, for exact tests).
         jpeg_quality: JPEG quality 1..100.
+        jpeg_chroma_444: keep full-resolution colour (no 4:2:0 chroma subsampling).
 
     Returns:
         ``out_dir``.
@@ -262,6 +264,8 @@ def export_replica_layout(
             if raw.max() > 65535:
                 raise ValueError(f"frame {i}: depth {depth.max():.3f} m overflows 16 bits")
             params = [cv2.IMWRITE_JPEG_QUALITY, int(jpeg_quality)] if image_format == "jpg" else []
+            if image_format == "jpg" and jpeg_chroma_444:
+                params += [cv2.IMWRITE_JPEG_SAMPLING_FACTOR, cv2.IMWRITE_JPEG_SAMPLING_FACTOR_444]
             if not cv2.imwrite(str(results / f"frame{i:06d}.{image_format}"), rgb[:, :, ::-1],
                                params):
                 raise OSError(f"could not write frame {i}")

@@ -203,6 +203,10 @@ class Sequence:
         name = self._frames[i].get(column) or ""
         return self.path / name if name else None
 
+    def frame_path(self, i: int, column: str) -> Path | None:
+        """File of frame ``i``'s ``"rgb"``, ``"depth"`` or ``"sharp"`` image (None if absent)."""
+        return self._frame_file(i, column)
+
     def rgb(self, i: int) -> np.ndarray:
         """Observed (blurred) LDR frame ``i``: uint8 [H, W, 3], sRGB."""
         return _read_rgb(self._frame_file(i, "rgb"), self.width, self.height)

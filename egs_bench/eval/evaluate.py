@@ -67,6 +67,7 @@ def evaluate_ate(run: RunFolder, protocol: Protocol, seq=None) -> dict[str, Any]
     result = compute_run_ate(run, protocol, seq)
     summary = result.summary()
     summary["frames"] = protocol.ate_frames
+    summary["estimate_poses"] = run.estimate["poses"]
     summary["per_pose"] = {"timestamp_s": result.timestamps.tolist(),
                            "error_m": result.errors.tolist()}
     return summary
@@ -106,8 +107,59 @@ def compute_run_ate(run: RunFolder, protocol: Protocol, seq=None):  # -> AteResu
                                  f"keyframe {int(keyframes.max())} beyond the estimate's "
                                  f"{len(est)} poses")
             est = Trajectory(est.timestamps[keyframes], est.poses[keyframes])
-    return compute_ate(est, gt, align=protocol.ate_alignment, max_diff_s=protocol.ate_max_diff_s,
-                       est_name=run.trajectory_path, gt_name=gt_name)
+    return compute_ate(est, gt, align=run_alignment(run, protocol),
+                       max_diff_s=protocol.ate_max_diff_s, est_name=run.trajectory_path,
+                       gt_name=gt_name)
+
+
+def run_alignment(run: RunFolder, protocol: Protocol) -> str:
+    """The protocol's ATE alignment, except Sim(3) instead of SE(3) for a scale-free
+    (monocular) imported estimate, whose metric scale is unknown."""
+    if run.estimate["scale_free"] and protocol.ate_alignment == "se3":
+        return "sim3"
+    return protocol.ate_alignment
+
+
+def _estimate_notes(run: RunFolder, protocol: Protocol, ate: dict[str, Any],
+                    covered: int | None) -> list[str]:
+    """Notes on what an (imported) estimate covers, so tables never pass it off as more."""
+    est = run.estimate
+    notes = []
+    if ate["alignment"] != protocol.ate_alignment:
+        notes.append(f"ATE with {ate['alignment']} alignment instead of the protocol's "
+                     f"{protocol.ate_alignment}: the estimate is scale-free (monocular)")
+    if est["poses"] != "all" and protocol.ate_frames == "all":
+        of = f" of {covered}" if covered is not None else ""
+        notes.append(f"ATE over {ate['n_matched']}{of} frames: the estimate holds "
+                     f"{est['poses']} poses only")
+    elif covered is not None and protocol.ate_frames == "all" and ate["n_matched"] < covered:
+        notes.append(f"ATE over {ate['n_matched']} of {covered} frames: the estimate has no "
+                     "pose for the others")
+    if est["poses"] != "all":
+        notes.append(f"RPE per frame pairs consecutive poses of the estimate ({est['poses']}), "
+                     "not consecutive frames")
+    if est["scale_free"]:
+        notes.append("RPE translation is in the estimate's own scale (not aligned): not "
+                     "comparable with metric estimates")
+    return notes
+
+
+def _partial_renders_note(run: RunFolder, protocol: Protocol, num_frames: int) -> str | None:
+    """Why the renders of an estimate marked as partial (e.g. an import with keyframe renders
+    only) cannot be scored under ``protocol``; None when they can (or the run is complete)."""
+    kind = run.estimate["renders"]
+    if kind == "all" or not run.render_indices():
+        return None
+    keyframes = run.read_keyframes()
+    have = set(run.render_indices())
+    if protocol.render_skip_keyframes and keyframes is None:
+        return f"renders not scored: protocol {protocol.name!r} needs keyframes.txt"
+    wanted = rendering_frames(num_frames, protocol, keyframes)
+    if wanted and all(f in have for f in wanted):
+        return None
+    return (f"renders not scored: the estimate has renders of {kind} frames only "
+            f"({len(have)}), protocol {protocol.name!r} scores every {protocol.render_stride}th "
+            "frame")
 
 
 def rendering_frames(num_frames: int, protocol: Protocol,
@@ -224,6 +276,9 @@ def evaluate_run(run_dir: str | Path, protocol: str | Protocol = DEFAULT_PROTOCO
         if covered < len(seq):
             notes.append(f"the run covers {covered} of the sequence's {len(seq)} frames; "
                          "metrics are over those")
+    notes += _estimate_notes(run, proto, ate, coverage["frames_processed"] if coverage else None)
+    partial = (_partial_renders_note(run, proto, coverage["frames_processed"])
+               if coverage is not None else None)
     if seq is None:
         if run.render_indices():
             notes.append("renders not scored: the run has no sequence folder with reference "
@@ -233,6 +288,8 @@ def evaluate_run(run_dir: str | Path, protocol: str | Protocol = DEFAULT_PROTOCO
     elif proto.reference_images == "sharp" and not seq.has_sharp:
         notes.append("image metrics unavailable: the sequence has no sharp ground truth (a real "
                      "recording); ATE only")
+    elif partial:
+        notes.append(partial)
     else:
         rendering = evaluate_renders(run, proto, seq, coverage["frames_processed"],
                                      progress=progress)

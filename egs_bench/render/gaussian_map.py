@@ -118,6 +118,13 @@ class GaussianMap:
         return rasterize(self.means, self.quats, self.scales, self.opacities, self.colors,
                          viewmats, Ks, width, height, **kwargs)  # type: ignore[arg-type]
 
+    def frozen(self) -> FrozenGaussians:
+        """The activated parameters, detached: for loops that render a fixed map many times
+        (tracking), so the activations are computed once rather than per call."""
+        return FrozenGaussians(self.means.detach(), self.quats.detach(),
+                               self.scales.detach(), self.opacities.detach(),
+                               self.colors.detach())
+
     def to(self, device: str | torch.device | None = None, dtype: torch.dtype | None = None
            ) -> GaussianMap:
         """A detached copy on ``device`` with float tensors in ``dtype`` (ids stay int64)."""
@@ -240,6 +247,34 @@ class GaussianMap:
         from egs_bench.render.ply import load_ply
 
         return load_ply(path, dtype)
+
+
+@dataclass(frozen=True)
+class FrozenGaussians:
+    """Activated, detached Gaussian parameters (see :meth:`GaussianMap.frozen`); shapes as the
+    arguments of :func:`egs_bench.render.rasterize`."""
+
+    means: torch.Tensor
+    quats: torch.Tensor
+    scales: torch.Tensor
+    opacities: torch.Tensor
+    colors: torch.Tensor
+
+    @property
+    def dtype(self) -> torch.dtype:
+        return self.means.dtype
+
+    @property
+    def device(self) -> torch.device:
+        return self.means.device
+
+    def render(self, viewmats: torch.Tensor, Ks: torch.Tensor, width: int,  # noqa: N803
+               height: int, **kwargs: object) -> RasterResult:
+        """``rasterize`` these Gaussians into cameras ``viewmats`` [C,4,4] with ``Ks``."""
+        from egs_bench.render.rasterize import rasterize
+
+        return rasterize(self.means, self.quats, self.scales, self.opacities, self.colors,
+                         viewmats, Ks, width, height, **kwargs)  # type: ignore[arg-type]
 
 
 def _mean_sq_knn(points: np.ndarray, k: int = 3) -> np.ndarray:

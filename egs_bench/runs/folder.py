@@ -3,7 +3,8 @@
 Every method run writes one folder; ``egs-bench eval`` reads it and adds ``metrics.json``::
 
     <run>/run.yaml          identity: method name, sequence name + path, egs-bench version,
-                            optional ``groundtruth`` (a TUM file, for runs with no sequence folder)
+                            optional ``groundtruth`` (a TUM file, for runs with no sequence folder),
+                            optional ``estimate`` (imports: what the external output covers)
     <run>/config.yaml       the method's fully resolved configuration
     <run>/status.json       {"state": "running"|"done"|"failed", "reason", "tracking_lost", ...}
     <run>/trajectory.txt    estimated T_wc, TUM format, one pose per frame at its exposure end
@@ -60,6 +61,10 @@ METRICS_FILE = "metrics.json"
 PLOTS_DIR = "plots"
 
 STATES = ("running", "done", "failed")
+#: ``run.yaml`` ``estimate`` keys and their values for a method's own run (every frame has a
+#: pose and a render, metric scale). Imports of external outputs record what they really hold.
+ESTIMATE_DEFAULTS: dict[str, Any] = {"poses": "all", "renders": "all", "scale_free": False}
+ESTIMATE_COVERAGE = ("all", "keyframes", "subset", "none")
 _RENDER_NAME = re.compile(r"^(\d{6,})\.png$")
 
 
@@ -156,6 +161,7 @@ class RunFolder:
         config: Mapping[str, Any] | None = None,
         groundtruth: str | Path | None = None,
         overwrite: bool = False,
+        estimate: Mapping[str, Any] | None = None,
     ) -> RunFolder:
         """Create a run folder, write ``run.yaml`` + ``config.yaml`` and mark it ``running``.
 
@@ -170,6 +176,10 @@ class RunFolder:
                 sequence's ``groundtruth.txt`` (required when ``sequence_path`` is ``None``).
             overwrite: allow reusing a folder that already holds a run (its files are replaced;
                 stale renders and metrics are removed).
+            estimate: what the estimate covers, for imported external outputs: ``poses`` and
+                ``renders`` each ``"all"``, ``"keyframes"``, ``"subset"`` or ``"none"``,
+                ``scale_free`` (monocular: evaluated with Sim(3)), plus free-form ``source`` /
+                ``format`` entries. Omitted: :data:`ESTIMATE_DEFAULTS`.
 
         Raises:
             InputError: the folder already holds a run and ``overwrite`` is false.
@@ -179,6 +189,9 @@ class RunFolder:
             raise ValueError("method and sequence_name must be non-empty")
         if sequence_path is None and groundtruth is None:
             raise ValueError("a run needs a sequence_path or a groundtruth trajectory")
+        for key in ("poses", "renders"):
+            if estimate is not None and estimate.get(key, "all") not in ESTIMATE_COVERAGE:
+                raise ValueError(f"estimate {key} must be one of {ESTIMATE_COVERAGE}")
         if (path / RUN_FILE).exists():
             if not overwrite:
                 raise InputError(path, "already holds a run (pass overwrite=True / --overwrite)")
@@ -199,6 +212,8 @@ class RunFolder:
             "egs_bench_version": __version__,
             "created_utc": _now_utc(),
         }
+        if estimate is not None:
+            info["estimate"] = {**ESTIMATE_DEFAULTS, **dict(estimate)}
         write_text_atomic(path / RUN_FILE, _dump_yaml(info))
         run = cls(path, info)
         run.write_config(config or {})
@@ -254,6 +269,12 @@ class RunFolder:
         """Explicit ground-truth TUM file overriding the sequence's, if any."""
         p = self._info.get("groundtruth")
         return Path(p) if p else None
+
+    @property
+    def estimate(self) -> dict[str, Any]:
+        """What the estimate covers (``run.yaml`` ``estimate``, defaults for own runs)."""
+        value = self._info.get("estimate")
+        return {**ESTIMATE_DEFAULTS, **(value if isinstance(value, dict) else {})}
 
     @property
     def info(self) -> dict[str, Any]:

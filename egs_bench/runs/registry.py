@@ -33,7 +33,7 @@ ENTRY_POINT_GROUP = "egs_bench.methods"
 
 # Modules whose import registers the built-in methods (kept as names so that importing the
 # registry does not import torch).
-_BUILTIN_MODULES = ("egs_bench.slam.methods",)
+_BUILTIN_MODULES = ("egs_bench.slam.methods", "egs_bench.baselines.monogs_edi")
 
 
 @runtime_checkable
@@ -43,7 +43,7 @@ class Method(Protocol):
     name: str
     description: str
 
-    def run(self, sequence: Sequence, out: Path, *, preset: str = "paper", device: str = "cpu",
+    def run(self, sequence: Sequence, out: Path, *, preset: str = "auto", device: str = "auto",
             seed: int = 0, max_frames: int | None = None, progress: bool = True) -> RunFolder:
         """Process ``sequence`` and write a complete run folder at ``out``."""
         ...

@@ -192,6 +192,34 @@ def cpu_preset() -> SlamConfig:
 PRESETS = {"paper": paper_preset, "cpu": cpu_preset}
 
 
+def resolve_device(device: str) -> str:
+    """``auto`` -> ``cuda`` when a CUDA GPU is available, else ``cpu``; checks the others.
+
+    Raises:
+        ConfigError: an unknown device, or ``cuda`` without a GPU.
+    """
+    import torch
+
+    if device == "auto":
+        return "cuda" if torch.cuda.is_available() else "cpu"
+    if device.startswith("cuda"):
+        if not torch.cuda.is_available():
+            raise ConfigError(f"--device {device} requested but no CUDA GPU is available")
+        return device
+    if device != "cpu":
+        raise ConfigError(f"unknown device {device!r} (auto, cpu, cuda or cuda:N)")
+    return device
+
+
+def resolve_preset(name: str, device: str) -> str:
+    """``auto`` -> the GPU budget (``paper``) on CUDA, the ``cpu`` budget otherwise."""
+    if name == "auto":
+        return "paper" if device.startswith("cuda") else "cpu"
+    if name not in PRESETS:
+        raise ConfigError(f"unknown preset {name!r} (choose from auto, {', '.join(PRESETS)})")
+    return name
+
+
 def preset(name: str) -> SlamConfig:
     """The named preset (``paper`` or ``cpu``)."""
     try:

@@ -63,6 +63,10 @@ class IdentityCRF(CameraResponse):
     def inverse(self, ldr: torch.Tensor) -> torch.Tensor:
         return ldr
 
+    def value_and_slope(self, hdr: torch.Tensor) -> tuple[torch.Tensor, None]:
+        """The response and its derivative (None: 1 everywhere), without autograd."""
+        return hdr, None
+
 
 class FixedSRGBCRF(CameraResponse):
     """Fixed sRGB encoding (a non-learnable, physically plausible response)."""
@@ -139,13 +143,42 @@ class FrozenLeakyCurve:
         self.intercept = y[:-1] - x[:-1] * self.slope
         self.alpha = float(alpha)
 
+    @torch.no_grad()
+    def value_and_slope(self, hdr: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """LDR values [...] of HDR values [...] and the curve's derivative there, without
+        autograd (tracking differentiates through them by hand: one multiplication)."""
+        inside = hdr.clamp(0.0, 1.0)
+        idx = torch.bucketize(inside, self.inner.to(hdr.dtype), right=True)
+        seg_slope = self.slope.to(hdr.dtype)[idx]
+        mid = inside * seg_slope + self.intercept.to(hdr.dtype)[idx]
+        root = torch.rsqrt(hdr.clamp_min(1.0))
+        high = (1 + self.alpha) - self.alpha * root
+        low, high_slope = hdr < 0, hdr > 1
+        value = torch.where(low, self.alpha * hdr, torch.where(high_slope, high, mid))
+        # d/dh (1 + a - a h^-1/2) = (a / 2) h^-3/2
+        slope = torch.where(low, self.alpha, torch.where(high_slope,
+                                                         (0.5 * self.alpha) * root ** 3,
+                                                         seg_slope))
+        return value, slope
+
     def __call__(self, hdr: torch.Tensor) -> torch.Tensor:
         """LDR values [...] of HDR values [...] (differentiable in ``hdr``)."""
-        inside = hdr.clamp(0.0, 1.0)
-        idx = torch.bucketize(inside.detach(), self.inner.to(hdr.dtype), right=True)
-        mid = inside * self.slope.to(hdr.dtype)[idx] + self.intercept.to(hdr.dtype)[idx]
-        high = (1 + self.alpha) - self.alpha * torch.rsqrt(hdr.clamp_min(1.0))
-        return torch.where(hdr < 0, self.alpha * hdr, torch.where(hdr > 1, high, mid))
+        return _CurveFunction.apply(hdr, self)
+
+
+class _CurveFunction(torch.autograd.Function):
+    """A response with a hand-written backward from its precomputed derivative."""
+
+    @staticmethod
+    def forward(ctx, hdr: torch.Tensor, curve: FrozenLeakyCurve) -> torch.Tensor:  # type: ignore[override]
+        value, slope = curve.value_and_slope(hdr)
+        ctx.save_for_backward(slope)
+        return value
+
+    @staticmethod
+    def backward(ctx, grad: torch.Tensor):  # type: ignore[override]
+        (slope,) = ctx.saved_tensors
+        return grad * slope, None
 
 
 def nodes_from_logits(gap_logits: torch.Tensor) -> torch.Tensor:

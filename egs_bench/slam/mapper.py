@@ -10,6 +10,8 @@ one copy of their gradients and the loss back per iteration.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 import torch
 
@@ -50,19 +52,20 @@ class Mapper:
         self.crf_opt = None
         crf_params = list(crf.parameters())
         if crf_params:
-            self.crf_opt = torch.optim.Adam(crf_params, lr=cfg.lr_crf, foreach=True)
+            self.crf_opt = torch.optim.Adam(crf_params, lr=cfg.lr_crf, fused=True)
 
     def _gaussian_optimizer(self) -> torch.optim.Adam:
         g, c = self.gmap, self.cfg
         g.requires_grad_(True)
-        fused = g.device.type == "cuda"
+        # Fused: one kernel per step for all tensors, and the step counters stay on the device
+        # (the for-each and per-tensor forms read them on the host: a sync per tensor).
         return torch.optim.Adam([
             {"params": [g.means], "lr": c.lr_means},
             {"params": [g.colors], "lr": c.lr_colors},
             {"params": [g.opacity_logits], "lr": c.lr_opacity},
             {"params": [g.log_scales], "lr": c.lr_scales},
             {"params": [g.quats], "lr": c.lr_quats},
-        ], eps=1e-15, fused=fused or None, foreach=None if fused else True)
+        ], eps=1e-15, fused=True)
 
     def _targets(self, k: int, obs: FrameObs) -> LossTargets:
         if k not in self.targets:
@@ -87,7 +90,8 @@ class Mapper:
 
     def optimise(self, states: dict[int, FrameState], observations: dict[int, FrameObs],
                  window: list[int], all_keyframes: list[int], iterations: int,
-                 *, initial: bool = False, fixed_end_pose: int | None = 0) -> float:
+                 *, initial: bool = False, fixed_end_pose: int | None = 0,
+                 report: Callable[[int, int], None] | None = None) -> float:
         """Run ``iterations`` mapping iterations; returns the last total loss.
 
         Args:
@@ -98,8 +102,11 @@ class Mapper:
             initial: MonoGS map initialisation (frame 0 only; no isotropic term, no exposure).
             fixed_end_pose: keyframe whose ``T_tau`` is never refined (frame 0, placed at GT);
                 its ``T_0`` is refined when the blur model is on.
+            report: called as ``report(done, iterations)`` about 50 times over the round
+                (progress display).
         """
         cfg = self.cfg
+        report_every = max(1, iterations // 50)
         opt = self._gaussian_optimizer()
         blur = cfg.n_segments > 1
         # No pose is refined while the map is built from frame 0 alone: with one view the map
@@ -121,7 +128,9 @@ class Mapper:
         like = self.gmap.means
         loss_val = float("nan")
         prune_due = False
-        for _ in range(iterations):
+        for it in range(iterations):
+            if report is not None and it % report_every == 0:
+                report(it, iterations)
             views = self._pick_views(window, all_keyframes)
             paths = {k: exposure_path(states[k].pose0_cw, states[k].pose1_cw,
                                       observations[k].fractions) for k in views}

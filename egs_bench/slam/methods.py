@@ -34,14 +34,18 @@ class ConfiguredSlamMethod:
         base = make_preset(preset).replace(**sequence_slam_defaults(meta or {}))
         return base.replace(**self.overrides).validate()
 
-    def run(self, sequence: Sequence, out: Path, *, preset: str = "paper", device: str = "cpu",
+    def run(self, sequence: Sequence, out: Path, *, preset: str = "auto", device: str = "auto",
             seed: int = 0, max_frames: int | None = None, progress: bool = True,
             options: dict[str, Any] | None = None) -> RunFolder:
         """Run on ``sequence``; ``options`` override single configuration fields on top of the
         preset and the method's own settings (sensitivity studies; stored in the run folder's
-        resolved configuration)."""
+        resolved configuration). ``device="auto"`` picks CUDA when present; ``preset="auto"``
+        the paper budget on CUDA and the cpu budget on a CPU."""
+        from egs_bench.slam.config import resolve_device, resolve_preset
         from egs_bench.slam.runner import run_slam
 
+        device = resolve_device(device)
+        preset = resolve_preset(preset, device)
         config = self.config(preset, sequence.meta).replace(**(options or {})).validate()
         return run_slam(sequence, out, method_name=self.name, config=config,
                         preset=preset, device=device, seed=seed, max_frames=max_frames,

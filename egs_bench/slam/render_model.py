@@ -20,6 +20,7 @@ import torch
 
 from egs_bench.datasets.color import LUMA_BT601
 from egs_bench.render import GaussianMap
+from egs_bench.render.gaussian_map import FrozenGaussians
 from egs_bench.slam.config import SlamConfig
 from egs_bench.slam.frames import FrameObs
 from egs_bench.slam.losses import isotropic_loss, rendered_event_maps
@@ -29,17 +30,23 @@ from egs_bench.slam.losses import isotropic_loss, rendered_event_maps
 class LossTargets:
     """Observations of V frames, prepared for :func:`blur_loss` (device tensors, float).
 
+    The loss weights and the 1 / (number of values) of each mean are folded into the masks
+    (``*_scale``), so the loss is a few weighted sums.
+
     Attributes:
         rgb: observed LDR images [V, H, W, 3].
         photo_weight: [V, H, W] MonoGS boundary mask (channel sum > threshold), times the
-            edge mask in tracking.
+            edge mask in tracking, times ``photo_scale``.
         depth: observed depth [V, H, W] (m; 0 = invalid).
-        depth_mask: [V, H, W] 1 where the depth is valid.
+        depth_mask: [V, H, W] ``depth_scale`` where the depth is valid, else 0.
         event_target: [V, K, H, W] ``theta E_k`` (theta by the sign of the polarity sum E_k),
             or None without event loss.
-        event_weight: [V, K, H, W] 1 where ``E_k != 0`` (``L_HE``) and ``lambda_NE`` where
-            ``E_k = 0`` (``L_NE``, 0 without the no-event loss), or None.
+        event_weight: [V, K, H, W] ``event_scale`` where ``E_k != 0`` (``L_HE``) and
+            ``lambda_NE event_scale`` where ``E_k = 0`` (``L_NE``, 0 without the no-event
+            loss), or None.
         luma_weights: [3] BT.601 weights on the device (rendered luma = rgb @ weights).
+        photo_scale, depth_scale, event_scale: ``lambda_ID lambda_I / (3 H W)``,
+            ``lambda_ID lambda_D / (H W)``, ``lambda_E / (K H W)``.
     """
 
     rgb: torch.Tensor
@@ -49,6 +56,9 @@ class LossTargets:
     event_target: torch.Tensor | None
     event_weight: torch.Tensor | None
     luma_weights: torch.Tensor
+    photo_scale: float
+    depth_scale: float
+    event_scale: float
 
     @property
     def n_views(self) -> int:
@@ -59,20 +69,26 @@ def prepare_targets(obs: FrameObs, cfg: SlamConfig, theta: tuple[float, float], 
                     tracking: bool, use_events: bool) -> LossTargets:
     """:class:`LossTargets` of one frame (V = 1) for tracking or mapping."""
     dtype = obs.rgb.dtype
-    weight = obs.rgb_mask.to(dtype)
+    h, w = obs.depth.shape
+    photo_scale = cfg.lambda_id * cfg.lambda_i / (3 * h * w)
+    depth_scale = cfg.lambda_id * cfg.lambda_d / (h * w)
+    weight = obs.rgb_mask.to(dtype) * photo_scale
     if tracking and obs.edge_weight is not None:
         weight = weight * obs.edge_weight.to(dtype)
     target = event_weight = None
+    event_scale = 0.0
     if use_events and obs.event_maps is not None and len(obs.fractions) > 1:
         e = obs.event_maps.to(dtype)
-        has = e != 0
+        event_scale = cfg.lambda_e / e.numel()
         target = torch.where(e > 0, theta[0] * e, theta[1] * e)
         lam_ne = cfg.lambda_ne if cfg.no_event_loss else 0.0
-        event_weight = torch.where(has, torch.ones_like(e), torch.full_like(e, lam_ne))
+        event_weight = torch.where(e != 0, torch.full_like(e, event_scale),
+                                   torch.full_like(e, lam_ne * event_scale))
         target, event_weight = target[None], event_weight[None]
     luma = torch.tensor(LUMA_BT601, dtype=dtype, device=obs.rgb.device)  # once per frame
     return LossTargets(obs.rgb[None], weight[None], obs.depth[None],
-                       obs.depth_mask.to(dtype)[None], target, event_weight, luma)
+                       (obs.depth_mask.to(dtype) * depth_scale)[None], target, event_weight,
+                       luma, photo_scale, depth_scale, event_scale)
 
 
 def stack_targets(targets: list[LossTargets]) -> LossTargets:
@@ -80,12 +96,14 @@ def stack_targets(targets: list[LossTargets]) -> LossTargets:
     def cat(name: str) -> torch.Tensor | None:
         parts = [getattr(t, name) for t in targets]
         return None if any(p is None for p in parts) else torch.cat(parts)
-    return LossTargets(*(cat(f.name) for f in fields(LossTargets) if f.name != "luma_weights"),
-                       targets[0].luma_weights)
+    first = targets[0]
+    return LossTargets(*(cat(f.name) for f in fields(LossTargets)[:6]), first.luma_weights,
+                       first.photo_scale, first.depth_scale, first.event_scale)
 
 
-def render_views(gmap: GaussianMap, viewmats: torch.Tensor | np.ndarray, K: torch.Tensor,
-                 width: int, height: int, cfg: SlamConfig, *, visibility: bool = False):
+def render_views(gmap: GaussianMap | FrozenGaussians, viewmats: torch.Tensor | np.ndarray,
+                 K: torch.Tensor, width: int, height: int, cfg: SlamConfig, *,
+                 visibility: bool = False):
     """Render world-to-camera ``viewmats`` [C, 4, 4] (any float dtype, tensor or array) with the
     map's dtype and device; returns the RasterResult (``visibility`` only when asked)."""
     if isinstance(viewmats, np.ndarray):
@@ -111,8 +129,9 @@ def blur_loss(res, targets: LossTargets, crf: Callable[[torch.Tensor], torch.Ten
             where the rendered opacity > 0.95, events where it is > 0.5 in every sub-image)
             instead of the mapping masks.
         eps: log offset of the event model (the sequence's).
-        terms: return the per-term sums (``photometric``, ``depth``, ``event_he``,
-            ``event_ne``, ``total``) instead of the total alone (diagnostics; more operations).
+        terms: return the per-term sums over frames (``photometric`` L_I, ``depth`` L_D,
+            ``event_he``, ``event_ne``, ``total``) instead of the total alone (diagnostics;
+            more operations; a term whose weight is 0 is NaN).
 
     Every mean runs over all pixels with masked pixels counting zero (MonoGS), per frame.
     """
@@ -120,36 +139,75 @@ def blur_loss(res, targets: LossTargets, crf: Callable[[torch.Tensor], torch.Ten
     c, h, w = res.rgb.shape[:3]
     m = c // v
     hdr = res.rgb.view(v, m, h, w, 3)
-    ldr = crf(hdr.mean(1))
-    if exp_ab is not None:
-        ab = exp_ab.view(v, 1, 1, 2)
-        ldr = torch.addcmul(ab[..., 1:], ldr, ab[..., :1].exp())
+    ldr = respond(crf, hdr.mean(1), exp_ab)
     alpha = res.alpha.detach().view(v, m, h, w)
     weight = targets.photo_weight
     depth_mask = targets.depth_mask[:, None]
     if tracking:
         weight = weight * alpha.mean(1)
         depth_mask = depth_mask * (alpha > 0.95)
-    l_i = (weight[..., None] * (ldr - targets.rgb).abs()).mean((1, 2, 3))  # [V]
+    l_i = (weight[..., None] * (ldr - targets.rgb).abs()).sum((1, 2, 3))  # [V]
     depth = (res.expected_depth if cfg.expected_depth else res.depth).view(v, m, h, w)
-    l_d = (depth_mask * (depth - targets.depth[:, None]).abs()).mean((2, 3)).amin(1)  # [V]
-    total = cfg.lambda_id * (cfg.lambda_i * l_i + cfg.lambda_d * l_d).sum()
-    out: dict[str, torch.Tensor] = {}
+    l_d = (depth_mask * (depth - targets.depth[:, None]).abs()).sum((2, 3)).amin(1)  # [V]
+    total = (l_i + l_d).sum()
+    resid = None
     if targets.event_target is not None and m > 1:
         pred = rendered_event_maps(hdr, eps, targets.luma_weights)  # [V, K, H, W]
         resid = (targets.event_target - pred).abs()
         if tracking:
             resid = resid * (alpha > 0.5).all(1, keepdim=True)
-        total = total + (cfg.lambda_e * v) * (targets.event_weight * resid).mean()
-        if terms:
-            has = (targets.event_target != 0).to(resid.dtype)
-            out["event_he"] = (has * resid).mean((1, 2, 3)).sum()
-            out["event_ne"] = ((1 - has) * resid).mean((1, 2, 3)).sum()
+        total = total + (targets.event_weight * resid).sum()
     if not terms:
         return total
-    zero = total.new_zeros(())
-    return {"photometric": l_i.sum(), "depth": l_d.sum(), "event_he": out.get("event_he", zero),
-            "event_ne": out.get("event_ne", zero), "total": total}
+
+    def unscaled(value: torch.Tensor, weight: float) -> torch.Tensor:
+        return value / weight if weight else torch.full_like(value, float("nan"))
+    out = {"photometric": unscaled(l_i.sum(), targets.photo_scale * 3 * h * w),
+           "depth": unscaled(l_d.sum(), targets.depth_scale * h * w),
+           "event_he": total.new_zeros(()), "event_ne": total.new_zeros(()), "total": total}
+    if resid is not None:
+        has = (targets.event_target != 0).to(resid.dtype)
+        out["event_he"] = (has * resid).mean((1, 2, 3)).sum()
+        out["event_ne"] = ((1 - has) * resid).mean((1, 2, 3)).sum()
+    return out
+
+
+def respond(crf: Callable[[torch.Tensor], torch.Tensor], hdr: torch.Tensor,
+            exp_ab: torch.Tensor | None) -> torch.Tensor:
+    """LDR prediction ``exp(a) CRF(hdr) + b`` [V, H, W, 3] of mean HDR images [V, H, W, 3]
+    with per-frame exposure ``exp_ab`` [V, 2] (None: ``CRF(hdr)``).
+
+    A response with fixed parameters (``value_and_slope``: tracking's frozen curve, the
+    identity) goes through one autograd node with a hand-written backward; a learnable one
+    through autograd, so its parameters get gradients."""
+    if exp_ab is None:
+        return crf(hdr)
+    if hasattr(crf, "value_and_slope"):
+        return _FixedResponseWithExposure.apply(hdr, exp_ab, crf)
+    ab = exp_ab.view(-1, 1, 1, 2)
+    return torch.addcmul(ab[..., 1:], crf(hdr), ab[..., :1].exp())
+
+
+class _FixedResponseWithExposure(torch.autograd.Function):
+    """``exp(a) f(h) + b`` for a response ``f`` without parameters; gradients for ``h`` and
+    ``(a, b)`` from ``f``'s precomputed derivative (a handful of operations instead of the
+    autograd graph of the curve's branches)."""
+
+    @staticmethod
+    def forward(ctx, hdr: torch.Tensor, exp_ab: torch.Tensor, crf) -> torch.Tensor:  # type: ignore[override]
+        value, slope = crf.value_and_slope(hdr)
+        gain = exp_ab[:, 0].exp().view(-1, 1, 1, 1)
+        out = torch.addcmul(exp_ab[:, 1].view(-1, 1, 1, 1), value, gain)
+        ctx.save_for_backward(out, gain if slope is None else gain * slope, exp_ab[:, 1])
+        return out
+
+    @staticmethod
+    def backward(ctx, grad: torch.Tensor):  # type: ignore[override]
+        out, d_hdr, b = ctx.saved_tensors
+        # d/da = exp(a) f(h) = out - b; d/db = 1
+        g_a = (grad * (out - b.view(-1, 1, 1, 1))).sum((1, 2, 3))
+        g_b = grad.sum((1, 2, 3))
+        return grad * d_hdr, torch.stack([g_a, g_b], -1), None
 
 
 def mapping_regulariser(gmap: GaussianMap, cfg: SlamConfig) -> torch.Tensor:

@@ -10,12 +10,11 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
-from egs_bench.errors import ConfigError
 from egs_bench.fileio import write_text_atomic
 from egs_bench.geometry import invert_pose
 from egs_bench.runs.folder import RunFolder
 from egs_bench.slam.appearance import APPEARANCE_FILE, MAP_FILE, Appearance, ldr8, write_appearance
-from egs_bench.slam.config import SlamConfig
+from egs_bench.slam.config import SlamConfig, resolve_device
 from egs_bench.slam.render_model import render_views
 from egs_bench.slam.system import FrameReport, SlamSystem
 
@@ -27,14 +26,6 @@ def resolve_sequence(name_or_path: str | Path):
     from egs_bench.datasets.sequence import Sequence
 
     return Sequence.open(resolve_path(name_or_path))
-
-
-def _pick_device(device: str) -> str:
-    if device.startswith("cuda") and not torch.cuda.is_available():
-        raise ConfigError("--device cuda requested but no CUDA GPU is available")
-    if device not in ("cpu",) and not device.startswith("cuda"):
-        raise ConfigError(f"unknown device {device!r} (cpu or cuda)")
-    return device
 
 
 def run_slam(seq, out: str | Path, *, method_name: str, config: SlamConfig, preset: str = "paper",
@@ -49,7 +40,7 @@ def run_slam(seq, out: str | Path, *, method_name: str, config: SlamConfig, pres
     timing, ``slam_stats.json`` (divergences, map size) and the log. On any exception
     (including Ctrl-C) the folder is marked failed.
     """
-    device = _pick_device(device)
+    device = resolve_device(device)
     n = len(seq) if max_frames is None else max(1, min(len(seq), int(max_frames)))
     resolved = {"method": method_name, "preset": preset, "seed": seed, "device": device,
                 "frames": n, "slam": config.to_dict()}
@@ -69,7 +60,18 @@ def run_slam(seq, out: str | Path, *, method_name: str, config: SlamConfig, pres
             bar.set_postfix(loss=f"{rep.loss:.4f}", fps=f"{bar.n / max(elapsed, 1e-9):.2f}",
                             gaussians=len(system.gmap))
 
-        result = system.run(n, on_frame=on_frame)
+        phase_start: dict[str, float] = {}
+
+        def on_phase(name: str, done: int, total: int) -> None:
+            # Frame 0's map initialisation alone takes minutes on a CPU with the paper budget:
+            # show how far it is and when it ends rather than a frozen bar.
+            now = time.perf_counter()
+            if done == 0:
+                phase_start[name] = now
+            eta = (now - phase_start[name]) / done * (total - done) if done else float("nan")
+            bar.set_postfix_str(f"{name} {done}/{total} iterations, ETA {eta:.0f} s")
+
+        result = system.run(n, on_frame=on_frame, on_phase=on_phase if progress else None)
         total_wall = time.perf_counter() - t_start
         bar.close()
         poses_wc = np.stack([invert_pose(s.pose1_cw) for s in result.states])

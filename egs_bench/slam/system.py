@@ -118,9 +118,19 @@ class SlamSystem:
         return None
 
     # -------------------------------------------------------------------------------- main loop
-    def run(self, n_frames: int, on_frame: Callable[[FrameReport], None] | None = None
-            ) -> SlamResult:
-        """Process frames ``0 .. n_frames-1``; returns the estimates and the map."""
+    def run(self, n_frames: int, on_frame: Callable[[FrameReport], None] | None = None,
+            on_phase: Callable[[str, int, int], None] | None = None) -> SlamResult:
+        """Process frames ``0 .. n_frames-1``; returns the estimates and the map.
+
+        Args:
+            on_frame: called after every frame with its report.
+            on_phase: called during long phases inside a frame as ``on_phase(name, done,
+                total)`` (``"map init"``: the mapping on frame 0, ``"mapping"``: a keyframe's
+                round), for progress displays.
+        """
+        def phase(name: str):
+            return None if on_phase is None else (lambda done, total: on_phase(name, done, total))
+
         if n_frames < 1:
             raise InputError(self.seq.path, "no frames to process")
         cfg = self.cfg
@@ -133,7 +143,8 @@ class SlamSystem:
         n_added = self._insert(obs0, states[0], cfg.pcd_downsample_init, 0)
         if n_added == 0:
             raise InputError(self.seq.path, "frame 0 has no valid depth: cannot initialise the map")
-        self.mapper.optimise(kf_states, observations, [0], [0], cfg.init_iters, initial=True)
+        self.mapper.optimise(kf_states, observations, [0], [0], cfg.init_iters, initial=True,
+                             report=phase("map init"))
         self.log(f"initialised map on frame 0: {len(self.gmap)} Gaussians")
         keyframes, window = [0], [0]
         visibility = {0: self._end_render(states[0]).visibility[0].cpu().numpy()}
@@ -191,7 +202,7 @@ class SlamSystem:
                     k: kf_states[k].pose1_cw for k in kf_states}, self.rules)
                 self._insert(obs, tr.state, cfg.pcd_downsample, i)
                 self.mapper.optimise(kf_states, observations, window, keyframes,
-                                     cfg.mapping_iters)
+                                     cfg.mapping_iters, report=phase("mapping"))
                 for k in window:  # MonoGS recomputes window visibility after mapping
                     visibility[k] = self._end_render(kf_states[k]).visibility[0].cpu().numpy()
                 if removed:

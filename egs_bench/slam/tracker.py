@@ -86,6 +86,7 @@ def track_frame(gmap: GaussianMap, crf: CameraResponse, obs: FrameObs, init: Fra
     adam = HostAdam(lr, cfg.tracking_lr_final ** (1.0 / max(cfg.tracking_iters - 1, 1)))
     targets = prepare_targets(obs, cfg, theta, tracking=True, use_events=cfg.event_tracking)
     curve = crf.frozen()
+    scene = gmap.frozen()  # the map is fixed while tracking: activate it once
     like = targets.rgb
     m = len(fractions)
     loss_val, it, converged = math.inf, 0, False
@@ -104,7 +105,7 @@ def track_frame(gmap: GaussianMap, crf: CameraResponse, obs: FrameObs, init: Fra
         packed = to_device(np.r_[views.ravel(), exposure] if use_exposure else views.ravel(), like)
         viewmats = packed[:16 * m].view(m, 4, 4).requires_grad_()
         exp_ab = packed[16 * m:].view(1, 2).requires_grad_() if use_exposure else None
-        res = render_views(gmap, viewmats, K, width, height, cfg)
+        res = render_views(scene, viewmats, K, width, height, cfg)
         total = blur_loss(res, targets, curve, exp_ab, cfg, tracking=True, eps=eps)
         total.backward()
         grads = [viewmats.grad.reshape(-1)] + ([exp_ab.grad.reshape(-1)] if use_exposure else [])

@@ -303,3 +303,28 @@ def test_normalised_depth_keeps_alpha_in_the_graph() -> None:
                                            use_events=False), crf, None,
                       cfg.replace(expected_depth=False), tracking=False, eps=1e-3, terms=True)
     assert plain["depth"].item() == pytest.approx(0.97 * 2.5 - 2.0, abs=0.01)
+
+
+@pytest.mark.parametrize("kind", ["learnable", "identity"])
+def test_fixed_response_backward_matches_finite_differences(kind: str) -> None:
+    """Tracking's response + exposure node has a hand-written backward: gradcheck it (float64
+    central differences) on HDR values away from the curve's kinks, below 0, inside and above
+    1, and compare its value with the autograd form used in mapping."""
+    from egs_bench.slam.render_model import respond
+
+    crf = make_crf(kind, 8, 0.01, "srgb")
+    frozen = crf.frozen()
+    rng = torch.Generator().manual_seed(0)
+    hdr = torch.cat([torch.rand(20, generator=rng) * 3 - 0.5]).double()
+    if kind == "learnable":
+        nodes = crf.nodes().detach().double()
+        near_kink = (hdr[:, None] - torch.cat([nodes, torch.tensor([0.0, 1.0]).double()])
+                     ).abs().min(1).values < 1e-3
+        hdr = hdr[~near_kink]
+    hdr = hdr.reshape(1, 1, -1, 1).expand(2, 1, -1, 3).contiguous().requires_grad_()
+    exp_ab = torch.tensor([[0.1, -0.02], [-0.05, 0.03]], dtype=torch.float64,
+                          requires_grad=True)
+    assert torch.autograd.gradcheck(lambda h, ab: respond(frozen, h, ab), (hdr, exp_ab))
+    generic = torch.addcmul(exp_ab[:, 1].view(-1, 1, 1, 1), crf.double()(hdr),
+                            exp_ab[:, 0].exp().view(-1, 1, 1, 1))
+    torch.testing.assert_close(respond(frozen, hdr, exp_ab), generic)

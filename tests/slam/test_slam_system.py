@@ -300,6 +300,33 @@ def test_cli_run_set_overrides_reach_the_run_config(tiny_sequence: Path, tmp_pat
     assert isinstance(res.exception, ConfigError) and "lambda_d" in str(res.exception)
 
 
+def test_auto_preset_and_device(tiny_sequence: Path, tmp_path: Path, monkeypatch) -> None:
+    """Without --preset/--device a CPU machine runs the cpu budget on the CPU (the paper budget
+    took over 6 minutes for frame 0 on 2 cores); CUDA, when present, gets the paper budget."""
+    from egs_bench.slam.config import resolve_device, resolve_preset
+
+    assert resolve_preset("auto", "cpu") == "cpu"
+    assert resolve_preset("auto", "cuda") == resolve_preset("auto", "cuda:1") == "paper"
+    assert resolve_preset("paper", "cpu") == "paper"
+    with pytest.raises(ConfigError, match="unknown preset"):
+        resolve_preset("fast", "cpu")
+    monkeypatch.setattr(torch.cuda, "is_available", lambda: False)
+    assert resolve_device("auto") == "cpu"
+    with pytest.raises(ConfigError, match="no CUDA GPU"):
+        resolve_device("cuda")
+    with pytest.raises(ConfigError, match="unknown device"):
+        resolve_device("tpu")
+    out = tmp_path / "run"
+    res = CliRunner().invoke(app, [
+        "run", "--method", "monogs", "--seq", str(tiny_sequence), "--out", str(out),
+        "--max-frames", "1", "--quiet", "--set", "init_iters=2"])
+    assert res.exit_code == 0, res.output
+    cfg = yaml.safe_load((out / "config.yaml").read_text())
+    assert cfg["preset"] == "cpu" and cfg["device"] == "cpu"
+    assert cfg["slam"]["resolution_scale"] == methods.BUILTIN["monogs"].config(
+        "cpu").resolution_scale
+
+
 def test_final_refinement_lowers_keyframe_loss_and_keeps_poses(tiny_sequence: Path) -> None:
     from egs_bench.slam.exposure import exposure_path
     from egs_bench.slam.render_model import blur_loss, prepare_targets, render_views

@@ -1,0 +1,190 @@
+"""One-command check of a CUDA machine: gsplat build, CUDA tests, paper-budget speed and accuracy.
+
+Run it through ``benchmarks/gpu_check.sh`` (or ``make gpu-check``), which sets the build
+environment. Steps, each timed and bounded:
+
+1. environment (torch, CUDA device, gsplat version) and gsplat's JIT build (first use);
+2. the CUDA tests (``pytest -m cuda``: gsplat against the reference rasteriser, SLAM on CUDA
+   against the CPU);
+3. the built-in 448x256 sequence (generated on first use);
+4. ``egs`` and ``monogs`` with the ``paper`` preset on its first ``--frames`` frames: FPS,
+   per-frame seconds, ATE and PSNR against the sharp ground truth;
+5. the overhead counts of ``bench_slam_overhead.py`` with wall time per iteration.
+
+Everything lands in one JSON file (``--json``, default ``gpu_check.json``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+
+def _timed(report: dict, key: str):
+    class _Timer:
+        def __enter__(self):
+            self.t = time.perf_counter()
+
+        def __exit__(self, *exc):
+            report.setdefault("seconds", {})[key] = round(time.perf_counter() - self.t, 1)
+            return False
+    return _Timer()
+
+
+def environment() -> dict:
+    import torch
+
+    info = {"torch": torch.__version__, "cuda_available": torch.cuda.is_available()}
+    if not torch.cuda.is_available():
+        raise SystemExit("gpu_check: no CUDA GPU visible to torch")
+    info["device"] = torch.cuda.get_device_name(0)
+    info["cuda"] = torch.version.cuda
+    try:
+        import gsplat
+    except ImportError:
+        raise SystemExit("gpu_check: gsplat is not installed: pip install -e '.[cuda]'") from None
+    info["gsplat"] = gsplat.__version__
+    return info
+
+
+def build_gsplat() -> None:
+    """First gsplat call: compiles its CUDA extension (about a minute) unless cached."""
+    import torch
+
+    from egs_bench.render import rasterize
+
+    dev = torch.device("cuda")
+    means = torch.tensor([[0.0, 0.0, 2.0]], device=dev)
+    out = rasterize(means, torch.tensor([[1.0, 0, 0, 0]], device=dev),
+                    torch.full((1, 3), 0.1, device=dev), torch.tensor([0.9], device=dev),
+                    torch.ones(1, 3, device=dev), torch.eye(4, device=dev)[None],
+                    torch.tensor([[[50.0, 0, 16], [0, 50, 12], [0, 0, 1]]], device=dev), 32, 24)
+    torch.cuda.synchronize()
+    if not bool(out.visibility[0, 0]):
+        raise SystemExit("gpu_check: gsplat rendered nothing for a Gaussian in front of the camera")
+
+
+def cuda_tests(timeout_s: float) -> dict:
+    cmd = [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-m", "cuda",
+           "-rA", "tests"]
+    try:
+        proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=timeout_s)
+    except subprocess.TimeoutExpired:
+        return {"passed": False, "summary": f"timed out after {timeout_s:.0f} s"}
+    lines = (proc.stdout + proc.stderr).strip().splitlines()
+    return {"passed": proc.returncode == 0, "summary": lines[-1] if lines else "",
+            "log_tail": lines[-40:]}
+
+
+def run_method(method: str, seq, frames: int, out_root: Path) -> dict:
+    import numpy as np
+
+    from egs_bench.eval.ate import ate_from_files
+    from egs_bench.eval.image_metrics import psnr
+    from egs_bench.runs.registry import get_method
+
+    out = out_root / method
+    t = time.perf_counter()
+    run = get_method(method).run(seq, out, preset="paper", device="cuda", seed=0,
+                                 max_frames=frames, progress=False)
+    wall = time.perf_counter() - t
+    timing = json.loads((run.path / "timing.json").read_text())
+    stats = json.loads((run.path / "slam_stats.json").read_text())
+    per_frame = timing.get("per_frame_s") or []
+    ate = ate_from_files(run.path / "trajectory.txt", seq.path / "groundtruth.txt")
+    psnrs = [psnr(run.read_render(i), seq.sharp(i)) for i in range(0, frames, 5)
+             if seq.sharp(i) is not None]
+    return {"frames": frames, "fps": stats["fps"], "slam_wall_s": timing.get("total_wall_s"),
+            "wall_with_output_s": round(wall, 1),
+            "frame0_s": per_frame[0] if per_frame else None,
+            "per_frame_s_median": float(np.median(per_frame[1:])) if len(per_frame) > 1
+            else None,
+            "per_frame_s": per_frame, "keyframes": stats["keyframes"],
+            "gaussians": stats["gaussians"], "divergences": len(stats["divergences"]),
+            "fps_after_frame0": (len(per_frame) - 1) / sum(per_frame[1:])
+            if len(per_frame) > 1 else None,
+            "ate_rmse_cm": 100 * ate.rmse, "psnr_db": float(np.mean(psnrs)) if psnrs else None}
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--seq", default="office1", help="448x256 built-in sequence (or folder)")
+    ap.add_argument("--frames", type=int, default=50, help="frames per method")
+    ap.add_argument("--methods", default="egs,monogs")
+    ap.add_argument("--json", type=Path, default=Path("gpu_check.json"))
+    ap.add_argument("--out", type=Path, default=Path("gpu_check_runs"),
+                    help="run folders (replaced if they exist from an earlier check)")
+    ap.add_argument("--skip-tests", action="store_true")
+    ap.add_argument("--test-timeout", type=float, default=240.0)
+    args = ap.parse_args(argv)
+    report: dict = {"date": time.strftime("%Y-%m-%d %H:%M:%S"), "command": sys.argv}
+
+    def save() -> None:
+        args.json.write_text(json.dumps(report, indent=1) + "\n")
+
+    with _timed(report, "environment"):
+        report["environment"] = environment()
+    print(f"[1/5] {report['environment']}", flush=True)
+    with _timed(report, "gsplat_first_call"):
+        build_gsplat()
+    print(f"      gsplat ready after {report['seconds']['gsplat_first_call']} s", flush=True)
+    save()
+    if not args.skip_tests:
+        with _timed(report, "cuda_tests"):
+            report["cuda_tests"] = cuda_tests(args.test_timeout)
+        print(f"[2/5] CUDA tests: {report['cuda_tests']['summary']}", flush=True)
+        save()
+    from egs_bench.datasets.registry import resolve_sequence
+    from egs_bench.datasets.sequence import Sequence
+
+    with _timed(report, "sequence"):
+        seq = Sequence.open(resolve_sequence(args.seq, progress=False))
+    frames = min(args.frames, len(seq))
+    report["sequence"] = {"name": seq.name, "resolution": f"{seq.width}x{seq.height}",
+                          "frames_used": frames}
+    print(f"[3/5] sequence {seq.name} {seq.width}x{seq.height} "
+          f"({report['seconds']['sequence']} s)", flush=True)
+    report["methods"] = {}
+    from egs_bench.runs.folder import RunFolder
+
+    for method in args.methods.split(","):
+        import shutil
+
+        if (args.out / method).exists():
+            if not RunFolder.is_run_folder(args.out / method):
+                raise SystemExit(f"gpu_check: {args.out / method} exists and is not a run "
+                                 "folder; choose another --out")
+            shutil.rmtree(args.out / method)  # a run folder of an earlier check
+        with _timed(report, f"run_{method}"):
+            report["methods"][method] = r = run_method(method, seq, frames, args.out)
+        print(f"[4/5] {method}: {r['fps']:.2f} FPS over {frames} frames "
+              f"({r['fps_after_frame0']:.2f} after frame 0; frame 0 {r['frame0_s']:.1f} s), "
+              f"ATE {r['ate_rmse_cm']:.2f} cm, PSNR {r['psnr_db']:.2f} dB", flush=True)
+        save()
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    from bench_slam_overhead import measure
+
+    with _timed(report, "overhead"):
+        report["overhead"] = [measure(m, seq, "paper", "cuda", 20, 3)
+                              for m in args.methods.split(",")]
+    for r in report["overhead"]:
+        for phase in ("tracking", "mapping"):
+            p = r[phase]
+            print(f"[5/5] {r['method']} {phase}: {p['ms_per_iter']:.2f} ms/iteration, "
+                  f"{p['slam_ops']:.0f} SLAM-side ops, {p['slam_syncs']:.1f} syncs", flush=True)
+    save()
+    print(f"wrote {args.json}")
+    return 0 if report.get("cuda_tests", {}).get("passed", True) else 1
+
+
+if __name__ == "__main__":
+    os.environ.setdefault("MPLBACKEND", "Agg")
+    raise SystemExit(main())

@@ -1,0 +1,41 @@
+"""CLI commands of the interoperability area: ``export`` (thin wrapper over
+:func:`egs_bench.interop.export.export_sequence`)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+from egs_bench.cli.app import app
+
+
+@app.command("export")
+def export_cmd(
+    seq: str = typer.Argument(..., help="Sequence folder, or a name under $EGS_BENCH_DATA."),
+    out: Path = typer.Argument(..., help="Export folder to create."),
+    fmt: str = typer.Option(..., "--format", "-f",
+                            help="tum-rgbd (MonoGS, ORB-SLAM2, Photo-SLAM), replica "
+                                 "(NICE-SLAM-style loaders, MonoGS), eds (RampVO)."),
+    retime: str = typer.Option("auto", "--retime",
+                               help="tum-rgbd time stamps: auto (rewrite to t0 + j/30 s only "
+                                    "if frames are <= 1/32 s apart, which MonoGS drops), never, "
+                                    "always."),
+    jpeg_quality: int = typer.Option(95, "--jpeg-quality",
+                                     help="JPEG quality of the replica layout (1-100)."),
+    overwrite: bool = typer.Option(False, "--overwrite",
+                                   help="Replace an earlier egs-bench export at OUT."),
+    quiet: bool = typer.Option(False, "--quiet", help="No progress bar."),
+) -> None:
+    """Export a sequence in a layout another SLAM system reads, with its camera files."""
+    from egs_bench.datasets.registry import resolve_sequence
+    from egs_bench.interop.export import export_sequence
+
+    result = export_sequence(resolve_sequence(seq, progress=not quiet), out, fmt=fmt,
+                             overwrite=overwrite, retime=retime, jpeg_quality=jpeg_quality,
+                             progress=not quiet)
+    typer.echo(f"exported {result.frames} frames ({result.format}) to {result.path}")
+    for consumer, name in result.files.items():
+        typer.echo(f"  {consumer:12s} {result.path / name}")
+    for note in result.notes:
+        typer.echo(f"note: {note}")
