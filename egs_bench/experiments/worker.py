@@ -118,7 +118,9 @@ def decide(spec: RunSpec, force: bool = False, retry_failed: bool = False) -> De
                                f"{record.get('config_hash')} != {spec.config_hash}); kept: "
                                "rerun with --force or use another --out")
     state = run_state(run_dir)
-    if record.get("state") == "interrupted" or state in (None, "running"):
+    # a record still "running" means the worker died (the caller holds or tested the lock),
+    # possibly after the method finished but before its evaluation: run it again
+    if record.get("state") in ("interrupted", "running") or state in (None, "running"):
         return Decision(RUN, "interrupted before it finished")
     if state == "done":
         return Decision(RUN, "--force") if force else Decision(SKIP, "finished earlier")

@@ -133,3 +133,35 @@ def test_plan_slots_cpu_budget_and_gpus(tmp_path, seqs) -> None:
     assert slots[0].env["OMP_NUM_THREADS"] == "8"
     with pytest.raises(ConfigError, match="no CUDA GPU is visible"):
         plan_slots(cuda, LocalOptions(), gpus=[])
+
+
+def test_decide_from_the_run_folder(tmp_path, seqs) -> None:
+    import json
+
+    from egs_bench.experiments.worker import CONFLICT, KEEP_FAILED, RUN, SKIP, STALE, decide
+
+    spec = parse_sweep({"methods": ["sweep_fixtures:GOOD"], "sequences": ["a"]}, "s.yaml")
+    run = expand(spec, seqs, tmp_path)[0]
+    run_dir = tmp_path / "runs" / run.run_id
+
+    def state(record: dict | None, status: dict | None) -> str:
+        run_dir.mkdir(parents=True, exist_ok=True)
+        for name, data in (("sweep.json", record), ("status.json", status)):
+            (run_dir / name).unlink(missing_ok=True)
+            if data is not None:
+                (run_dir / name).write_text(json.dumps(data))
+        return decide(run).action
+
+    ours = {"run_id": run.run_id, "config_hash": run.config_hash}
+    assert decide(run).action == RUN  # no folder yet
+    assert state(None, {"state": "done"}) == CONFLICT  # a folder the sweep did not make
+    assert state({**ours, "state": "done"}, {"state": "done"}) == SKIP
+    assert state({**ours, "state": "done", "config_hash": "x"}, {"state": "done"}) == STALE
+    # killed after the method finished, before its evaluation: the record still says running
+    assert state({**ours, "state": "running"}, {"state": "done"}) == RUN
+    assert state({**ours, "state": "running"}, None) == RUN
+    assert state({**ours, "state": "interrupted"}, {"state": "failed"}) == RUN
+    assert state({**ours, "state": "failed"}, {"state": "failed"}) == KEEP_FAILED
+    assert decide(run, retry_failed=True).action == RUN
+    assert state({**ours, "state": "done"}, {"state": "done"}) == SKIP
+    assert decide(run, force=True).action == RUN
