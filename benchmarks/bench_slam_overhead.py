@@ -167,12 +167,13 @@ def measure(method: str, seq: Sequence, preset: str, device: str, iters: int,
     gt0 = invert_pose(np.asarray(seq.poses[0], dtype=np.float64))
     s0 = FrameState(0, gt0.copy(), gt0.copy())
     obs0 = system._obs(0)
-    system._insert(obs0, s0, cfg.pcd_downsample_init, 0)
-    system.mapper.optimise({0: s0}, {0: obs0}, [0], [0], cfg.init_iters, initial=True)
+    system._insert(obs0, s0, cfg.budget.pcd_downsample_init, 0)
+    system.mapper.optimise({0: s0}, {0: obs0}, [0], [0], cfg.budget.init_iters, initial=True)
     obs1 = system._obs(1)
     t0, t1 = (int(v) for v in seq.exposure(1))
     e0 = int(seq.exposure(0)[1])
-    init = predict_initial(1, [s0], cfg.motion_model, t0, t1, e0, None, int(seq.exposure(0)[0]))
+    init = predict_initial(1, [s0], cfg.tracking.motion_model, t0, t1, e0, None,
+                           int(seq.exposure(0)[0]))
 
     def track(n: int):
         c = cfg.replace(tracking_iters=n)
@@ -201,10 +202,10 @@ def measure(method: str, seq: Sequence, preset: str, device: str, iters: int,
         out["tracking"]["ms_per_iter"] = 1e3 * (time.perf_counter() - t) / iters  # type: ignore
 
     # Mapping: frame 1 becomes a keyframe; iterations over the window [1, 0].
-    s1 = track(cfg.tracking_iters).state
+    s1 = track(cfg.budget.tracking_iters).state
     states = {0: s0, 1: s1}
     observations = {0: obs0, 1: obs1}
-    system._insert(obs1, s1, cfg.pcd_downsample, 1)
+    system._insert(obs1, s1, cfg.budget.pcd_downsample, 1)
     system.mapper.optimise(states, observations, [1, 0], [0, 1], warmup)
     with counting() as (ops, host):
         system.mapper.optimise(states, observations, [1, 0], [0, 1], iters)

@@ -64,7 +64,9 @@ def make_synthetic_cmd(
 
 @app.command("list-scenes")
 def list_scenes_cmd() -> None:
-    """List the built-in procedural scenes for `make-synthetic`."""
+    """List the built-in procedural scenes for `make-synthetic` and the named built-in
+    sequences (`--seq NAME`, generated on first use under $EGS_BENCH_DATA)."""
+    from egs_bench.datasets.registry import BUILTIN_SEQUENCES, data_root
     from egs_bench.datasets.synthetic import list_scenes
 
     table = Table(title="built-in synthetic scenes")
@@ -72,4 +74,13 @@ def list_scenes_cmd() -> None:
     table.add_column("description")
     for name, description in list_scenes().items():
         table.add_row(name, description)
-    Console().print(table)
+    console = Console()
+    console.print(table)
+    seqs = Table(title=f"built-in sequences (--seq NAME; generated on first use in {data_root()})")
+    for col in ("name", "scene", "frames", "size", "exposure ms", "speed", "here", "description"):
+        seqs.add_column(col, no_wrap=col in ("name", "scene", "size"))
+    for name, spec in BUILTIN_SEQUENCES.items():
+        seqs.add_row(name, spec.scene, str(spec.frames), f"{spec.width}x{spec.height}",
+                     f"{spec.exposure_ms:g}", f"{spec.speed:g}",
+                     "yes" if (data_root() / name).is_dir() else "", spec.description)
+    console.print(seqs)

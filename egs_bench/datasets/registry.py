@@ -66,7 +66,24 @@ BUILTIN_SEQUENCES: dict[str, BuiltinSequence] = {
     "studio-fast": BuiltinSequence("studio", "studio-s's motion 3x faster (strong blur)",
                                    frames=40, width=224, height=128, speed=1.2, seed=9,
                                    exposure_ms=25.0),
+    # Paper scale (EventReplica: 448x256, hundreds of frames): 300 frames = 10 s at 30 Hz,
+    # strong hand-held blur (speed 1 with a 25 ms exposure: ~5 px mean motion per exposure at
+    # 448 px), one per scene, and an unblurred twin of the first.
+    "office-l": BuiltinSequence("office", "paper scale: office, 300 frames, strong blur",
+                                frames=300, speed=1.0, seed=11, exposure_ms=25.0),
+    "livingroom-l": BuiltinSequence("livingroom", "paper scale: living room, 300 frames, "
+                                    "strong blur", frames=300, speed=1.0, seed=12,
+                                    exposure_ms=25.0),
+    "studio-l": BuiltinSequence("studio", "paper scale: studio, 300 frames, strong blur",
+                                frames=300, speed=1.0, seed=13, exposure_ms=25.0),
+    "corridor-l": BuiltinSequence("corridor", "paper scale: corridor, 300 frames, strong blur",
+                                  frames=300, speed=1.0, seed=14, exposure_ms=25.0),
+    "office-l-sharp": BuiltinSequence("office", "office-l's motion with a 1 ms exposure (no "
+                                      "blur)", frames=300, speed=1.0, seed=11, exposure_ms=1.0),
 }
+
+PAPER_SCALE_SEQUENCES = ("office-l", "livingroom-l", "studio-l", "corridor-l")
+PAPER_SCALE_UNBLURRED = "office-l-sharp"
 
 
 def data_root() -> Path:

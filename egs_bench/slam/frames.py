@@ -76,7 +76,7 @@ def load_frame(seq, i: int, cam: Intrinsics, cfg: SlamConfig, want_events: bool,
         rgb = _area_resize(rgb, w, h)
         depth = _resize_depth(depth, w, h)
     t0, t1 = (int(v) for v in seq.exposure(i))
-    blur = cfg.n_segments > 1
+    blur = cfg.method.blur_model
     n_events = 0
     event_maps = None
     if blur:
@@ -99,11 +99,12 @@ def load_frame(seq, i: int, cam: Intrinsics, cfg: SlamConfig, want_events: bool,
     rgb_t = torch.from_numpy(np.ascontiguousarray(rgb)).to(device)
     depth_t = torch.from_numpy(np.ascontiguousarray(depth)).to(device)
     edge = None
-    if cfg.use_edge_mask:
-        edge = torch.from_numpy(edge_mask(rgb, cfg.edge_threshold, cfg.edge_blocks)).to(device)
+    if cfg.loss.use_edge_mask:
+        edge = torch.from_numpy(edge_mask(rgb, cfg.loss.edge_threshold,
+                                          cfg.budget.edge_blocks)).to(device)
     return FrameObs(
         index=i, rgb=rgb_t, depth=depth_t,
-        rgb_mask=rgb_boundary_mask(rgb_t, cfg.rgb_boundary_threshold),
+        rgb_mask=rgb_boundary_mask(rgb_t, cfg.loss.rgb_boundary_threshold),
         depth_mask=depth_valid_mask(depth_t), edge_weight=edge,
         fractions=np.asarray(fr, dtype=np.float64),
         event_maps=event_maps, n_events=n_events,

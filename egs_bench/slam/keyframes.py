@@ -7,22 +7,9 @@ The window is ordered newest first, as in MonoGS.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
-
-@dataclass(frozen=True)
-class KeyframeRules:
-    """MonoGS thresholds (Replica values by default; research note §1.4)."""
-
-    kf_interval: int = 4            # minimum frames since the last keyframe
-    kf_overlap: float = 0.95        # IoU of visible Gaussians below which a new KF is wanted
-    kf_min_translation: float = 0.02  # x median depth, together with low overlap
-    kf_translation: float = 0.04    # x median depth, alone
-    kf_cutoff: float = 0.4          # Szymkiewicz–Simpson overlap at or below which a KF may go
-    window_size: int = 10
-    n_protected: int = 2            # newest entries never removed
+from egs_bench.slam.config import KeyframeConfig
 
 
 def _padded(a: np.ndarray, n: int) -> np.ndarray:
@@ -56,31 +43,31 @@ def relative_translation(pose_a_cw: np.ndarray, pose_b_cw: np.ndarray) -> float:
 
 def is_keyframe(frame_idx: int, last_kf_idx: int, pose_cw: np.ndarray, last_kf_pose_cw: np.ndarray,
                 vis: np.ndarray, last_kf_vis: np.ndarray, median_depth: float, window_len: int,
-                rules: KeyframeRules) -> bool:
+                rules: KeyframeConfig, window_size: int) -> bool:
     """MonoGS's single-thread keyframe test for the tracked frame ``frame_idx``.
 
-    A frame becomes a keyframe when enough frames have passed (``kf_interval``) and either the
-    window is not yet full and the overlap (IoU) with the last keyframe is below ``kf_overlap``,
-    or the camera moved more than ``kf_translation`` x median depth, or it moved more than
-    ``kf_min_translation`` x median depth while the overlap is below ``kf_overlap``.
+    A frame becomes a keyframe when enough frames have passed (``interval``) and either the
+    window (of ``window_size``) is not yet full and the overlap (IoU) with the last keyframe is
+    below ``overlap``, or the camera moved more than ``translation`` x median depth, or it
+    moved more than ``min_translation`` x median depth while the overlap is below ``overlap``.
     """
-    if frame_idx - last_kf_idx < rules.kf_interval:
+    if frame_idx - last_kf_idx < rules.interval:
         return False
     iou = visibility_iou(vis, last_kf_vis)
-    if window_len < rules.window_size:
-        return iou < rules.kf_overlap
+    if window_len < window_size:
+        return iou < rules.overlap
     dist = relative_translation(pose_cw, last_kf_pose_cw)
-    return bool((iou < rules.kf_overlap and dist > rules.kf_min_translation * median_depth)
-                or dist > rules.kf_translation * median_depth)
+    return bool((iou < rules.overlap and dist > rules.min_translation * median_depth)
+                or dist > rules.translation * median_depth)
 
 
 def update_window(window: list[int], new_kf: int, visibility: dict[int, np.ndarray],
-                  poses_cw: dict[int, np.ndarray], rules: KeyframeRules
+                  poses_cw: dict[int, np.ndarray], rules: KeyframeConfig, window_size: int
                   ) -> tuple[list[int], list[int]]:
     """Insert ``new_kf`` at the front of the window and remove keyframes (MonoGS rules).
 
     First, among the unprotected keyframes whose overlap coefficient with the new keyframe is
-    at most ``kf_cutoff``, the oldest one is removed. Then, if the window is still longer than
+    at most ``cutoff``, the oldest one is removed. Then, if the window is still longer than
     ``window_size``, the keyframe with the largest DSO score
     ``sqrt(d(i, newest)) * sum_j 1 / (d(i, j) + 1e-6)`` (j over the other unprotected ones) is
     removed.
@@ -91,13 +78,13 @@ def update_window(window: list[int], new_kf: int, visibility: dict[int, np.ndarr
     win = [new_kf] + [k for k in window if k != new_kf]
     removed: list[int] = []
     cur_vis = visibility[new_kf]
-    candidates = [k for k in win[rules.n_protected:]
-                  if visibility_overlap_coefficient(cur_vis, visibility[k]) <= rules.kf_cutoff]
+    candidates = [k for k in win[rules.protected:]
+                  if visibility_overlap_coefficient(cur_vis, visibility[k]) <= rules.cutoff]
     if candidates:
         removed.append(candidates[-1])
         win.remove(candidates[-1])
-    if len(win) > rules.window_size:
-        unprotected = win[rules.n_protected:]
+    if len(win) > window_size:
+        unprotected = win[rules.protected:]
         newest = poses_cw[win[0]]
         best, best_score = None, -np.inf
         for i in unprotected:

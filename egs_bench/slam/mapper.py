@@ -52,7 +52,7 @@ class Mapper:
         self.crf_opt = None
         crf_params = list(crf.parameters())
         if crf_params:
-            self.crf_opt = torch.optim.Adam(crf_params, lr=cfg.lr_crf, fused=True)
+            self.crf_opt = torch.optim.Adam(crf_params, lr=cfg.mapping.lr_crf, fused=True)
 
     def _gaussian_optimizer(self) -> torch.optim.Adam:
         g, c = self.gmap, self.cfg
@@ -60,17 +60,17 @@ class Mapper:
         # Fused: one kernel per step for all tensors, and the step counters stay on the device
         # (the for-each and per-tensor forms read them on the host: a sync per tensor).
         return torch.optim.Adam([
-            {"params": [g.means], "lr": c.lr_means},
-            {"params": [g.colors], "lr": c.lr_colors},
-            {"params": [g.opacity_logits], "lr": c.lr_opacity},
-            {"params": [g.log_scales], "lr": c.lr_scales},
-            {"params": [g.quats], "lr": c.lr_quats},
+            {"params": [g.means], "lr": c.budget.lr_means},
+            {"params": [g.colors], "lr": c.budget.lr_colors},
+            {"params": [g.opacity_logits], "lr": c.budget.lr_opacity},
+            {"params": [g.log_scales], "lr": c.budget.lr_scales},
+            {"params": [g.quats], "lr": c.mapping.lr_quats},
         ], eps=1e-15, fused=True)
 
     def _targets(self, k: int, obs: FrameObs) -> LossTargets:
         if k not in self.targets:
             self.targets[k] = prepare_targets(obs, self.cfg, self.theta, tracking=False,
-                                              use_events=self.cfg.event_mapping)
+                                              use_events=self.cfg.method.event_mapping)
         return self.targets[k]
 
     def _pick_views(self, window: list[int], all_keyframes: list[int]) -> list[int]:
@@ -79,12 +79,12 @@ class Mapper:
         cfg = self.cfg
         views = list(window)
         others = [k for k in all_keyframes if k not in window]
-        if others and cfg.n_random_kfs > 0:
-            pick = self.rng.permutation(len(others))[: cfg.n_random_kfs]
+        if others and cfg.mapping.n_random_kfs > 0:
+            pick = self.rng.permutation(len(others))[: cfg.mapping.n_random_kfs]
             views += [others[int(j)] for j in pick]
-        if cfg.views_per_iter is not None and len(views) > cfg.views_per_iter:
+        if cfg.budget.views_per_iter is not None and len(views) > cfg.budget.views_per_iter:
             rest = views[1:]
-            pick = self.rng.permutation(len(rest))[: cfg.views_per_iter - 1]
+            pick = self.rng.permutation(len(rest))[: cfg.budget.views_per_iter - 1]
             views = [views[0]] + [rest[int(j)] for j in pick]
         return views
 
@@ -108,22 +108,24 @@ class Mapper:
         cfg = self.cfg
         report_every = max(1, iterations // 50)
         opt = self._gaussian_optimizer()
-        blur = cfg.n_segments > 1
+        blur = cfg.method.blur_model
         # No pose is refined while the map is built from frame 0 alone: with one view the map
         # absorbs any T_0 (measured: frame 0's T_0 drifted 9 cm from a 2 cm true motion on
         # `demo`, and the constant-velocity prediction of frame 1 inherited it). Frame 0's T_0
         # is refined later, when other keyframes constrain the map.
-        refine = [] if initial else list(window[: cfg.pose_window])
+        refine = [] if initial or not cfg.mapping.refine_poses else list(
+            window[: cfg.budget.pose_window])
         # Which end poses of each refined keyframe move: (T_0, T_tau).
         slots = {k: (blur, k != fixed_end_pose) for k in refine}
         refine = [k for k in refine if any(slots[k])]
-        use_exposure = cfg.exposure_compensation and not initial
+        use_exposure = cfg.method.exposure_compensation and not initial
         free_exposure = [k for k in window if k != fixed_end_pose] if use_exposure else []
         # Host Adam over the refined keyframes' end twists (12 each; frozen slots get zero
         # gradients) and the window's exposures (2 each).
-        pose_lr = np.r_[[cfg.lr_trans] * 3, [cfg.lr_rot] * 3] * cfg.kf_pose_lr_scale
+        pose_lr = (np.r_[[cfg.budget.lr_trans] * 3, [cfg.budget.lr_rot] * 3]
+                   * cfg.mapping.kf_pose_lr_scale)
         adam = HostAdam(np.r_[np.tile(pose_lr, 2 * len(refine)),
-                              [cfg.lr_exposure] * (2 * len(free_exposure))])
+                              [cfg.tracking.lr_exposure] * (2 * len(free_exposure))])
         slot_mask = np.repeat(np.array([s for k in refine for s in slots[k]], float), 6)
         like = self.gmap.means
         loss_val = float("nan")
@@ -172,15 +174,15 @@ class Mapper:
                 self._host_step(adam, states, views, paths, refine, slot_mask, free_exposure,
                                 host[:-1], m)
             self.iteration += 1
-            if not initial and self.iteration % cfg.prune_every == cfg.prune_offset % max(
-                    cfg.prune_every, 1):
+            every = cfg.budget.prune_every
+            if not initial and self.iteration % every == cfg.budget.prune_offset % every:
                 prune_due = True
         self.gmap.requires_grad_(False)
         with torch.no_grad():
             if initial:
-                self._prune(cfg.init_prune_opacity)
+                self._prune(cfg.mapping.init_prune_opacity)
             elif prune_due:
-                self._prune(cfg.prune_opacity)
+                self._prune(cfg.mapping.prune_opacity)
         return loss_val
 
     def _host_step(self, adam: HostAdam, states: dict[int, FrameState], views: list[int],
@@ -211,7 +213,7 @@ class Mapper:
             st = states[k]
             st.pose0_cw = se3_exp(twists[j, 0]) @ st.pose0_cw
             st.pose1_cw = se3_exp(twists[j, 1]) @ st.pose1_cw
-            if self.cfg.n_segments == 1:
+            if not self.cfg.method.blur_model:
                 st.pose0_cw = st.pose1_cw.copy()
         for j, k in enumerate(free_exposure):
             da, db = delta[12 * len(refine) + 2 * j: 12 * len(refine) + 2 * j + 2]
@@ -233,7 +235,7 @@ class Mapper:
             st = states[k]
             views = exposure_path(st.pose0_cw, st.pose1_cw, observations[k].fractions)[0]
             exp_ab = to_device(np.array([st.exp_a, st.exp_b]), like).view(1, 2) \
-                if cfg.exposure_compensation else None
+                if cfg.method.exposure_compensation else None
             res = render_views(self.gmap, views, self.K, self.width, self.height, cfg)
             total = (blur_loss(res, self._targets(k, observations[k]), self.crf, exp_ab, cfg,
                                tracking=False, eps=self.eps)

@@ -53,7 +53,7 @@ class ConfiguredSlamMethod:
 
 
 _MONOGS = {
-    "n_segments": 1, "event_tracking": False, "event_mapping": False, "no_event_loss": False,
+    "blur_model": False, "event_tracking": False, "event_mapping": False, "no_event_loss": False,
     "crf": "identity", "exposure_compensation": True,
     # MonoGS RGB-D loss: alpha L_rgb + (1 - alpha) L_depth with alpha = 0.95 (Replica).
     "lambda_e": 0.0, "lambda_id": 1.0, "lambda_i": 0.95, "lambda_d": 0.05,

@@ -70,8 +70,8 @@ def prepare_targets(obs: FrameObs, cfg: SlamConfig, theta: tuple[float, float], 
     """:class:`LossTargets` of one frame (V = 1) for tracking or mapping."""
     dtype = obs.rgb.dtype
     h, w = obs.depth.shape
-    photo_scale = cfg.lambda_id * cfg.lambda_i / (3 * h * w)
-    depth_scale = cfg.lambda_id * cfg.lambda_d / (h * w)
+    photo_scale = cfg.loss.lambda_id * cfg.loss.lambda_i / (3 * h * w)
+    depth_scale = cfg.loss.lambda_id * cfg.loss.lambda_d / (h * w)
     weight = obs.rgb_mask.to(dtype) * photo_scale
     if tracking and obs.edge_weight is not None:
         weight = weight * obs.edge_weight.to(dtype)
@@ -79,9 +79,9 @@ def prepare_targets(obs: FrameObs, cfg: SlamConfig, theta: tuple[float, float], 
     event_scale = 0.0
     if use_events and obs.event_maps is not None and len(obs.fractions) > 1:
         e = obs.event_maps.to(dtype)
-        event_scale = cfg.lambda_e / e.numel()
+        event_scale = cfg.loss.lambda_e / e.numel()
         target = torch.where(e > 0, theta[0] * e, theta[1] * e)
-        lam_ne = cfg.lambda_ne if cfg.no_event_loss else 0.0
+        lam_ne = cfg.loss.lambda_ne if cfg.method.no_event_loss else 0.0
         event_weight = torch.where(e != 0, torch.full_like(e, event_scale),
                                    torch.full_like(e, lam_ne * event_scale))
         target, event_weight = target[None], event_weight[None]
@@ -110,8 +110,8 @@ def render_views(gmap: GaussianMap | FrozenGaussians, viewmats: torch.Tensor | n
         viewmats = torch.from_numpy(viewmats)
     vm = viewmats.to(device=gmap.device, dtype=gmap.dtype)
     ks = K.to(gmap.dtype).expand(vm.shape[0], 3, 3)
-    return gmap.render(vm, ks, width, height, near_plane=cfg.near_plane, backend=cfg.backend,
-                       visibility=visibility)
+    return gmap.render(vm, ks, width, height, near_plane=cfg.mapping.near_plane,
+                       backend=cfg.runtime.backend, visibility=visibility)
 
 
 def blur_loss(res, targets: LossTargets, crf: Callable[[torch.Tensor], torch.Tensor],
@@ -147,7 +147,7 @@ def blur_loss(res, targets: LossTargets, crf: Callable[[torch.Tensor], torch.Ten
         weight = weight * alpha.mean(1)
         depth_mask = depth_mask * (alpha > 0.95)
     l_i = (weight[..., None] * (ldr - targets.rgb).abs()).sum((1, 2, 3))  # [V]
-    depth = (res.expected_depth if cfg.expected_depth else res.depth).view(v, m, h, w)
+    depth = (res.expected_depth if cfg.loss.expected_depth else res.depth).view(v, m, h, w)
     l_d = (depth_mask * (depth - targets.depth[:, None]).abs()).sum((2, 3)).amin(1)  # [V]
     total = (l_i + l_d).sum()
     resid = None
@@ -212,4 +212,4 @@ class _FixedResponseWithExposure(torch.autograd.Function):
 
 def mapping_regulariser(gmap: GaussianMap, cfg: SlamConfig) -> torch.Tensor:
     """``lambda_iso`` x the isotropic term on the map's scales (paper eq. 15, MonoGS)."""
-    return cfg.lambda_iso * isotropic_loss(gmap.scales)
+    return cfg.loss.lambda_iso * isotropic_loss(gmap.scales)

@@ -82,7 +82,7 @@ def run_slam(seq, out: str | Path, *, method_name: str, config: SlamConfig, pres
                          per_frame_s=[r.wall_s for r in result.reports], render_fps=render_fps)
         result.gmap.save_ply(run.path / MAP_FILE)
         write_appearance(run.path / APPEARANCE_FILE, Appearance(
-            system.crf, seq.intrinsics, config.near_plane,
+            system.crf, seq.intrinsics, config.mapping.near_plane,
             np.array([s.index for s in result.states]),
             np.asarray(seq.timestamps_s[:n], dtype=np.float64),
             np.array([s.exp_a for s in result.states]),

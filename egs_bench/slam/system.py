@@ -16,7 +16,7 @@ from egs_bench.render import GaussianMap
 from egs_bench.slam.config import SlamConfig
 from egs_bench.slam.crf import make_crf
 from egs_bench.slam.frames import FrameObs, FrameState, internal_intrinsics, load_frame
-from egs_bench.slam.keyframes import KeyframeRules, is_keyframe, update_window
+from egs_bench.slam.keyframes import is_keyframe, update_window
 from egs_bench.slam.mapper import Mapper
 from egs_bench.slam.render_model import render_views
 from egs_bench.slam.tracker import predict_initial, track_frame
@@ -58,23 +58,22 @@ class SlamSystem:
         self.seq, self.cfg = seq, cfg
         self.device = torch.device(device)
         self.log = log or (lambda _m: None)
-        self.cam = internal_intrinsics(seq.intrinsics, cfg.resolution_scale)
+        self.cam = internal_intrinsics(seq.intrinsics, cfg.budget.resolution_scale)
         self.K = torch.tensor(self.cam.K, dtype=torch.float32, device=self.device)
         self.gen = torch.Generator().manual_seed(seed)  # insertion subsampling
         self.rng = np.random.default_rng(seed)  # random mapping views
         torch.manual_seed(seed)
         self.gmap = GaussianMap.empty(torch.float32, self.device)
-        self.crf = make_crf(cfg.crf, cfg.crf_nodes, cfg.crf_alpha, cfg.crf_init, self.device)
-        if cfg.theta is not None:
-            self.theta = (float(cfg.theta), float(cfg.theta))
+        m = cfg.method
+        self.crf = make_crf(m.crf, m.crf_nodes, m.crf_alpha, m.crf_init, self.device)
+        if cfg.method.theta is not None:
+            self.theta = (float(cfg.method.theta), float(cfg.method.theta))
         else:
             self.theta = (float(seq.pos_threshold), float(seq.neg_threshold))
         self.eps = float(seq.eps)
-        self.want_events = cfg.event_tracking or cfg.event_mapping
+        self.want_events = cfg.method.event_tracking or cfg.method.event_mapping
         if self.want_events and not getattr(seq, "has_events", True):
             self.log("sequence has no events: event losses see empty event maps")
-        self.rules = KeyframeRules(cfg.kf_interval, cfg.kf_overlap, cfg.kf_min_translation,
-                                   cfg.kf_translation, cfg.kf_cutoff, cfg.window_size)
         self.mapper = Mapper(self.gmap, self.crf, cfg, self.K, self.cam.width, self.cam.height,
                              self.theta, self.eps, self.rng)
 
@@ -88,7 +87,8 @@ class SlamSystem:
         depth = (obs.depth * obs.rgb_mask).cpu().numpy()  # MonoGS zeroes near-black pixels
         pose_wc = invert_pose(state.pose1_cw)
         return self.gmap.add_from_depth(lin.cpu().numpy(), depth, self.cam, pose_wc,
-                                        downsample=downsample, point_size=self.cfg.point_size,
+                                        downsample=downsample,
+                                        point_size=self.cfg.mapping.point_size,
                                         keyframe_id=kf_id, generator=self.gen)
 
     @torch.no_grad()
@@ -110,11 +110,12 @@ class SlamSystem:
         rel = new.pose1_cw @ invert_pose(prev.pose1_cw)
         trans = float(np.linalg.norm(rel[:3, 3]))
         ang = float(np.arccos(np.clip((np.trace(rel[:3, :3]) - 1) / 2, -1, 1)))
-        if trans > cfg.max_translation_jump or ang > cfg.max_rotation_jump:
+        if trans > cfg.tracking.max_translation_jump or ang > cfg.tracking.max_rotation_jump:
             return f"pose jump {trans:.3f} m / {math.degrees(ang):.1f} deg"
-        if len(recent) >= 5 and loss > cfg.divergence_loss_factor * float(np.median(recent)):
+        factor = cfg.tracking.divergence_loss_factor
+        if len(recent) >= 5 and loss > factor * float(np.median(recent)):
             med = float(np.median(recent))
-            return f"loss {loss:.4g} > {cfg.divergence_loss_factor} x median {med:.4g}"
+            return f"loss {loss:.4g} > {factor} x median {med:.4g}"
         return None
 
     # -------------------------------------------------------------------------------- main loop
@@ -140,16 +141,16 @@ class SlamSystem:
         obs0 = self._obs(0)
         observations: dict[int, FrameObs] = {0: obs0}
         kf_states: dict[int, FrameState] = {0: states[0]}
-        n_added = self._insert(obs0, states[0], cfg.pcd_downsample_init, 0)
+        n_added = self._insert(obs0, states[0], cfg.budget.pcd_downsample_init, 0)
         if n_added == 0:
             raise InputError(self.seq.path, "frame 0 has no valid depth: cannot initialise the map")
-        self.mapper.optimise(kf_states, observations, [0], [0], cfg.init_iters, initial=True,
+        self.mapper.optimise(kf_states, observations, [0], [0], cfg.budget.init_iters, initial=True,
                              report=phase("map init"))
         self.log(f"initialised map on frame 0: {len(self.gmap)} Gaussians")
         keyframes, window = [0], [0]
         visibility = {0: self._end_render(states[0]).visibility[0].cpu().numpy()}
         result = SlamResult(states, keyframes, self.gmap, self.crf)
-        rep = FrameReport(0, float("nan"), cfg.init_iters, True, False,
+        rep = FrameReport(0, float("nan"), cfg.budget.init_iters, True, False,
                           time.perf_counter() - t_wall)
         result.reports.append(rep)
         if on_frame:
@@ -161,11 +162,12 @@ class SlamSystem:
             t_frame = time.perf_counter()
             obs = self._obs(i)
             t0, t1 = (int(v) for v in self.seq.exposure(i))
-            init = predict_initial(i, states, cfg.motion_model, t0, t1, ends[i - 1],
+            init = predict_initial(i, states, cfg.tracking.motion_model, t0, t1, ends[i - 1],
                                    ends[i - 2] if i >= 2 else None, starts[i - 1])
             anchor = None
             since_prev = max(t1 - ends[i - 1], 1)
-            if cfg.continuous_exposure or t1 - t0 < cfg.short_exposure_ratio * since_prev:
+            short = t1 - t0 < cfg.tracking.short_exposure_ratio * since_prev
+            if cfg.tracking.continuous_exposure or short:
                 anchor = (states[-1].pose1_cw, (t0 - ends[i - 1]) / since_prev)
             tr = track_frame(self.gmap, self.crf, obs, init, self.K, self.cam.width,
                              self.cam.height, cfg, self.theta, self.eps, start_anchor=anchor)
@@ -192,17 +194,19 @@ class SlamSystem:
             last = keyframes[-1]
             is_kf = (not diverged) and is_keyframe(
                 i, last, tr.state.pose1_cw, kf_states[last].pose1_cw,
-                vis, visibility[last], self._median_depth(res), len(window), self.rules)
+                vis, visibility[last], self._median_depth(res), len(window), cfg.keyframes,
+                cfg.budget.window_size)
             if is_kf:
                 keyframes.append(i)
                 kf_states[i] = tr.state
                 observations[i] = obs
                 visibility[i] = vis
                 window, removed = update_window(window, i, visibility, {
-                    k: kf_states[k].pose1_cw for k in kf_states}, self.rules)
-                self._insert(obs, tr.state, cfg.pcd_downsample, i)
+                    k: kf_states[k].pose1_cw for k in kf_states}, cfg.keyframes,
+                    cfg.budget.window_size)
+                self._insert(obs, tr.state, cfg.budget.pcd_downsample, i)
                 self.mapper.optimise(kf_states, observations, window, keyframes,
-                                     cfg.mapping_iters, report=phase("mapping"))
+                                     cfg.budget.mapping_iters, report=phase("mapping"))
                 for k in window:  # MonoGS recomputes window visibility after mapping
                     visibility[k] = self._end_render(kf_states[k]).visibility[0].cpu().numpy()
                 if removed:
@@ -212,10 +216,11 @@ class SlamSystem:
             result.reports.append(rep)
             if on_frame:
                 on_frame(rep)
-        if cfg.refine_iters > 0:
+        if cfg.mapping.refine_iters > 0:
             t_ref = time.perf_counter()
-            loss = self.mapper.refine(kf_states, observations, keyframes, cfg.refine_iters)
-            self.log(f"refined the map: {cfg.refine_iters} iterations over {len(keyframes)} "
-                     f"keyframes in {time.perf_counter() - t_ref:.1f} s (loss {loss:.4g})")
+            loss = self.mapper.refine(kf_states, observations, keyframes, cfg.mapping.refine_iters)
+            self.log(f"refined the map: {cfg.mapping.refine_iters} iterations over "
+                     f"{len(keyframes)} keyframes in {time.perf_counter() - t_ref:.1f} s "
+                     f"(loss {loss:.4g})")
         result.keyframes = keyframes
         return result

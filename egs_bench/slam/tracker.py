@@ -76,21 +76,22 @@ def track_frame(gmap: GaussianMap, crf: CameraResponse, obs: FrameObs, init: Fra
     anchored = blur and start_anchor is not None
     n_free = 2 if blur and not anchored else 1
     pose0, pose1 = init.pose0_cw.copy(), init.pose1_cw.copy()
-    use_exposure = cfg.exposure_compensation
+    use_exposure = cfg.method.exposure_compensation
     exposure = np.array([init.exp_a, init.exp_b])
-    lr = np.tile(np.r_[[cfg.lr_trans] * 3, [cfg.lr_rot] * 3] * lr_scale, n_free)
+    lr = np.tile(np.r_[[cfg.budget.lr_trans] * 3, [cfg.budget.lr_rot] * 3] * lr_scale, n_free)
     if use_exposure:
-        lr = np.r_[lr, [cfg.lr_exposure] * 2]
+        lr = np.r_[lr, [cfg.tracking.lr_exposure] * 2]
     # Exponential decay from lr to lr x tracking_lr_final over the iteration budget: large first
     # steps follow fast motion, small last steps stop Adam's oscillation around the optimum.
-    adam = HostAdam(lr, cfg.tracking_lr_final ** (1.0 / max(cfg.tracking_iters - 1, 1)))
-    targets = prepare_targets(obs, cfg, theta, tracking=True, use_events=cfg.event_tracking)
+    decay = cfg.budget.tracking_lr_final ** (1.0 / max(cfg.budget.tracking_iters - 1, 1))
+    adam = HostAdam(lr, decay)
+    targets = prepare_targets(obs, cfg, theta, tracking=True, use_events=cfg.method.event_tracking)
     curve = crf.frozen()
     scene = gmap.frozen()  # the map is fixed while tracking: activate it once
     like = targets.rgb
     m = len(fractions)
     loss_val, it, converged = math.inf, 0, False
-    for step_i in range(1, cfg.tracking_iters + 1):
+    for step_i in range(1, cfg.budget.tracking_iters + 1):
         it = step_i
         # Map from the free twists (xi_0, xi_1 | xi_1) to the end twists (xi_0, xi_1) [12, 6n].
         select = np.zeros((12, 6 * n_free))
@@ -122,7 +123,7 @@ def track_frame(gmap: GaussianMap, crf: CameraResponse, obs: FrameObs, init: Fra
         pose1 = se3_exp(steps[-1]) @ pose1
         if use_exposure:
             exposure = exposure + delta[6 * n_free:]
-        if float(np.linalg.norm(steps, axis=-1).max()) < cfg.converged_threshold:
+        if float(np.linalg.norm(steps, axis=-1).max()) < cfg.budget.converged_threshold:
             converged = True
             break
     if anchored:

@@ -249,7 +249,8 @@ def test_monogs_edi_is_a_registered_method_writing_a_normal_run(tiny_room: Path,
     assert run.sequence_path == tiny_room.resolve()
     cfg = run.read_config()
     assert cfg["edi"]["c"] is None and cfg["edi"]["grid"] == EdiConfig().grid
-    assert cfg["slam"]["n_segments"] == 1 and cfg["slam"]["event_tracking"] is False
+    assert cfg["slam"]["method"]["blur_model"] is False
+    assert cfg["slam"]["method"]["event_tracking"] is False
     rows = (run.path / "edi_frames.csv").read_text().splitlines()
     assert len(rows) == 1 + 6 and all(float(r.split(",")[1]) > 0 for r in rows[1:])
     metrics = evaluate_run(run.path)

@@ -321,12 +321,13 @@ def test_real_sequences_get_the_papers_real_data_parameters() -> None:
 
     egs, monogs = methods.BUILTIN["egs"], methods.BUILTIN["monogs"]
     real = egs.config("cpu", {"source": "real"})
-    assert (real.theta, real.lambda_e, real.lambda_id) == (0.3, 0.15, 0.85)
+    assert (real.method.theta, real.loss.lambda_e, real.loss.lambda_id) == (0.3, 0.15, 0.85)
     synthetic = egs.config("cpu", {"source": "synthetic"})
-    assert (synthetic.theta, synthetic.lambda_e, synthetic.lambda_id) == (None, 0.05, 0.95)
+    assert (synthetic.method.theta, synthetic.loss.lambda_e,
+            synthetic.loss.lambda_id) == (None, 0.05, 0.95)
     # a method's own settings win: the MonoGS-style baseline has no event term
     base = monogs.config("cpu", {"source": "real"})
-    assert (base.lambda_e, base.lambda_id) == (0.0, 1.0)
+    assert (base.loss.lambda_e, base.loss.lambda_id) == (0.0, 1.0)
 
 
 FAST = ["resolution_scale=1.0", "init_iters=10", "tracking_iters=8", "mapping_iters=2",
@@ -346,7 +347,8 @@ def test_run_and_eval_on_imported_rig(imported: Path, tmp_path: Path) -> None:
     res = runner.invoke(app, args)
     assert res.exit_code == 0, res.output
     config = yaml.safe_load((run_dir / "config.yaml").read_text())["slam"]
-    assert (config["theta"], config["lambda_e"], config["lambda_id"]) == (0.3, 0.2, 0.85)
+    assert (config["method"]["theta"], config["loss"]["lambda_e"],
+            config["loss"]["lambda_id"]) == (0.3, 0.2, 0.85)
     res = runner.invoke(app, ["eval", str(run_dir)])
     assert res.exit_code == 0, res.output
     metrics = json.loads((run_dir / "metrics.json").read_text())

@@ -229,42 +229,47 @@ def _pose_at(x: float) -> np.ndarray:
 
 
 def test_keyframe_selection_rules() -> None:
-    r = keyframes.KeyframeRules(kf_interval=4, kf_overlap=0.9, kf_min_translation=0.02,
-                                kf_translation=0.04, window_size=3)
+    from egs_bench.slam.config import KeyframeConfig
+
+    r = KeyframeConfig(interval=4, overlap=0.9, min_translation=0.02, translation=0.04)
     same = _vis(list(range(10)))
     half = _vis(list(range(5)))
     args = dict(last_kf_idx=0, last_kf_pose_cw=_pose_at(0.0), last_kf_vis=same, median_depth=1.0)
     # too soon
     assert not keyframes.is_keyframe(3, pose_cw=_pose_at(1.0), vis=half, window_len=1,
-                                     rules=r, **args)
+                                     rules=r, window_size=3, **args)
     # window not full: overlap decides
-    assert keyframes.is_keyframe(4, pose_cw=_pose_at(0.0), vis=half, window_len=1, rules=r, **args)
+    assert keyframes.is_keyframe(4, pose_cw=_pose_at(0.0), vis=half, window_len=1, rules=r,
+                                 window_size=3, **args)
     assert not keyframes.is_keyframe(4, pose_cw=_pose_at(1.0), vis=same, window_len=1, rules=r,
-                                     **args)
+                                     window_size=3, **args)
     # window full: large translation alone, small translation needs low overlap
-    assert keyframes.is_keyframe(4, pose_cw=_pose_at(0.05), vis=same, window_len=3, rules=r, **args)
+    assert keyframes.is_keyframe(4, pose_cw=_pose_at(0.05), vis=same, window_len=3, rules=r,
+                                 window_size=3, **args)
     assert not keyframes.is_keyframe(4, pose_cw=_pose_at(0.03), vis=same, window_len=3, rules=r,
-                                     **args)
-    assert keyframes.is_keyframe(4, pose_cw=_pose_at(0.03), vis=half, window_len=3, rules=r, **args)
+                                     window_size=3, **args)
+    assert keyframes.is_keyframe(4, pose_cw=_pose_at(0.03), vis=half, window_len=3, rules=r,
+                                 window_size=3, **args)
     assert not keyframes.is_keyframe(4, pose_cw=_pose_at(0.01), vis=half, window_len=3, rules=r,
-                                     **args)
+                                     window_size=3, **args)
 
 
 def test_window_removal_overlap_then_dso() -> None:
-    r = keyframes.KeyframeRules(window_size=3, kf_cutoff=0.4)
+    from egs_bench.slam.config import KeyframeConfig
+
+    r = KeyframeConfig(cutoff=0.4)
     vis = {0: _vis([0, 1]), 1: _vis([1, 2, 3]), 2: _vis([2, 3, 4]), 3: _vis([3, 4, 5]),
            4: _vis([3, 4, 5])}
     poses = {k: _pose_at(float(k)) for k in range(5)}
     # New KF 4; window [3, 2, 1, 0]; unprotected 2, 1, 0. Overlap with 4: kf2 2/3, kf1 1/3,
     # kf0 0 -> candidates 1 and 0, the oldest (0) goes; window [4,3,2,1] still > 3 -> DSO.
-    win, removed = keyframes.update_window([3, 2, 1, 0], 4, vis, poses, r)
+    win, removed = keyframes.update_window([3, 2, 1, 0], 4, vis, poses, r, 3)
     assert removed[0] == 0 and len(win) == 3 and win[:2] == [4, 3]
     # DSO among {2, 1}: score(2) = sqrt(2) * 1/1, score(1) = sqrt(3) * 1/1 -> remove 1.
     assert removed[1] == 1 and win == [4, 3, 2]
     # Nothing removed while the window has room and overlaps are high.
     vis_all = {k: _vis(list(range(10))) for k in range(5)}
-    r_big = keyframes.KeyframeRules(window_size=10)
-    win2, removed2 = keyframes.update_window([3, 2, 1, 0], 4, vis_all, poses, r_big)
+    win2, removed2 = keyframes.update_window([3, 2, 1, 0], 4, vis_all, poses, r, 10)
     assert removed2 == [] and win2 == [4, 3, 2, 1, 0]
 
 
@@ -278,7 +283,7 @@ def test_normalised_depth_keeps_alpha_in_the_graph() -> None:
     obs = FrameObs(0, torch.full((h, w, 3), 0.5, dtype=torch.float64),
                    torch.full((h, w), 2.0, dtype=torch.float64), ones, ones, None,
                    np.array([1.0]), None, 0)
-    cfg = cpu_preset().replace(n_segments=1, event_tracking=False, event_mapping=False,
+    cfg = cpu_preset().replace(blur_model=False, event_tracking=False, event_mapping=False,
                                exposure_compensation=False, expected_depth=True, lambda_i=0.0)
     crf = make_crf("identity", 16, 0.01, "linear")
     f64 = torch.float64

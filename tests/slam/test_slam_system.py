@@ -173,7 +173,8 @@ def test_registry_builtins_import_path_and_errors(tmp_path: Path, monkeypatch) -
               "egs-no-crf", "egs-no-ne-loss", "monogs"):
         assert n in names
     mono = methods.BUILTIN["monogs"].config("paper")
-    assert mono.n_segments == 1 and not mono.event_tracking and mono.crf == "identity"
+    assert mono.n_segments == 1 and not mono.method.event_tracking
+    assert mono.method.crf == "identity"
     (tmp_path / "my_slam_plugin.py").write_text(
         "class M:\n    name = 'user-x'\n    description = 'test method'\n"
         "    def run(self, sequence, out, **kw):\n        raise NotImplementedError\n"
@@ -189,8 +190,8 @@ def test_registry_builtins_import_path_and_errors(tmp_path: Path, monkeypatch) -
         registry.get_method("nope")
     with pytest.raises(ConfigError, match="unknown SLAM option"):
         cpu_preset().replace(not_a_field=1)
-    with pytest.raises(ConfigError, match="n_segments"):
-        cpu_preset().replace(n_segments=1).validate()
+    with pytest.raises(ConfigError, match="blur_model"):
+        cpu_preset().replace(blur_model=False).validate()  # events need sub-poses
 
 
 def test_cli_list_methods_and_bad_method() -> None:
@@ -274,16 +275,38 @@ def test_black_frame_missing_depth_and_no_events_run_through(tiny_sequence: Path
 def test_parse_overrides_types_and_errors() -> None:
     from egs_bench.slam.config import parse_overrides
 
-    got = parse_overrides(["lambda_d=0.05", "crf=srgb", "theta=null", "tracking_iters=40",
-                           "event_mapping=false", "views_per_iter=3", "lambda_e=1"])
-    assert got == {"lambda_d": 0.05, "crf": "srgb", "theta": None, "tracking_iters": 40,
-                   "event_mapping": False, "views_per_iter": 3, "lambda_e": 1.0}
-    assert isinstance(got["lambda_e"], float)
+    got = parse_overrides(["lambda_d=0.05", "method.crf=srgb", "theta=null",
+                           "tracking_iters=40", "event_mapping=false", "views_per_iter=3",
+                           "lambda_e=1", "kf_interval=2"])
+    assert got == {"loss.lambda_d": 0.05, "method.crf": "srgb", "method.theta": None,
+                   "budget.tracking_iters": 40, "method.event_mapping": False,
+                   "budget.views_per_iter": 3, "loss.lambda_e": 1.0, "keyframes.interval": 2}
+    assert isinstance(got["loss.lambda_e"], float)
     for bad, words in [("lambda_d", "KEY=VALUE"), ("foo=1", "unknown"),
-                       ("tracking_iters=1.5", "int"), ("event_mapping=2", "bool"),
-                       ("lambda_d=abc", "float"), ("extra=1", "command line")]:
+                       ("tracking_iters=1.5", "integer"), ("event_mapping=2", "true or false"),
+                       ("lambda_d=abc", "finite number"), ("lambda_d=nan", "finite number"),
+                       ("crf=bogus", "one of"), ("backend=bogus", "runtime.backend"),
+                       ("extra=1", "unknown"), ("loss.nope=1", "unknown")]:
         with pytest.raises(ConfigError, match=words):
             parse_overrides([bad])
+
+
+def test_every_option_is_validated_and_presets_differ_only_in_budget() -> None:
+    from egs_bench.slam.config import GROUPS, SlamConfig, paper_preset
+
+    cpu, paper = cpu_preset(), paper_preset()
+    for group in GROUPS:
+        if group != "budget":
+            assert getattr(cpu, group) == getattr(paper, group), group
+    assert cpu.budget != paper.budget
+    for key, value in [("lambda_d", -0.1), ("resolution_scale", 0.0), ("tracking_iters", -1),
+                       ("overlap", 1.5), ("window_size", 2), ("prune_opacity", 1.0),
+                       ("short_exposure_ratio", 2.0), ("crf_nodes", 1), ("theta", 0.0),
+                       ("views_per_iter", 0), ("lr_rot", 0.0), ("near_plane", 0.0)]:
+        with pytest.raises(ConfigError, match=key):
+            cpu.replace(**{key: value}).validate()
+    round_trip = SlamConfig.from_dict(cpu.to_dict())
+    assert round_trip == cpu
 
 
 def test_cli_run_set_overrides_reach_the_run_config(tiny_sequence: Path, tmp_path: Path) -> None:
@@ -294,7 +317,7 @@ def test_cli_run_set_overrides_reach_the_run_config(tiny_sequence: Path, tmp_pat
         "--set", "init_iters=2", "--set", "lambda_d=0.2"])
     assert res.exit_code == 0, res.output
     cfg = yaml.safe_load((out / "config.yaml").read_text())
-    assert cfg["slam"]["lambda_d"] == 0.2 and cfg["slam"]["init_iters"] == 2
+    assert cfg["slam"]["loss"]["lambda_d"] == 0.2 and cfg["slam"]["budget"]["init_iters"] == 2
     res = CliRunner().invoke(app, ["run", "--method", "monogs", "--seq", str(tiny_sequence),
                                    "--set", "lambda_d=abc"])
     assert isinstance(res.exception, ConfigError) and "lambda_d" in str(res.exception)
@@ -323,8 +346,8 @@ def test_auto_preset_and_device(tiny_sequence: Path, tmp_path: Path, monkeypatch
     assert res.exit_code == 0, res.output
     cfg = yaml.safe_load((out / "config.yaml").read_text())
     assert cfg["preset"] == "cpu" and cfg["device"] == "cpu"
-    assert cfg["slam"]["resolution_scale"] == methods.BUILTIN["monogs"].config(
-        "cpu").resolution_scale
+    assert cfg["slam"]["budget"]["resolution_scale"] == methods.BUILTIN["monogs"].config(
+        "cpu").budget.resolution_scale
 
 
 def test_final_refinement_lowers_keyframe_loss_and_keeps_poses(tiny_sequence: Path) -> None:
