@@ -7,7 +7,7 @@ every run of it (the seeds); its statistics are the mean, the sample standard de
 number of evaluated runs.
 
 When a method was run with several settings, each row is labelled with the configuration keys
-that differ between them (``egs (lambda_d=0.05)``), or with the name a sweep gave the settings.
+that differ between them (``egs (loss.lambda_d=0.05)``), or with the name a sweep gave the settings.
 """
 
 from __future__ import annotations

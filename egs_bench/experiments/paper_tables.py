@@ -48,8 +48,10 @@ from egs_bench.eval.tables import (
 TABLES = ("ate", "rendering", "ablation_events", "ablation_crf", "edi")
 CHECK, CROSS = "✓", "✗"
 _LATEX_SYMBOLS = {CHECK: r"$\checkmark$", CROSS: r"$\times$"}
-EVENT_KEYS = ("slam.event_tracking", "slam.event_mapping")
-CRF_KEY = "slam.crf"
+# configuration switches of the ablations (found in a run's settings by their field name, so
+# both config.yaml layouts work: slam.method.crf and the older flat slam.crf)
+EVENT_FIELDS = ("event_tracking", "event_mapping")
+CRF_FIELD = "crf"
 EDI_METHODS = ("monogs", "monogs-edi")
 
 
@@ -314,34 +316,44 @@ def _fps(board: Leaderboard, row: RowKey) -> Stat | None:
     return Stat(float(np.mean([s.mean for s in stats])), math.nan, 0)
 
 
-def _ablation_rows(board: Leaderboard, keys: Sequence[str], full: str
+def _setting_key(settings: dict, name: str) -> str | None:
+    """The settings key of SLAM field ``name`` (``slam.method.crf`` or ``slam.crf``)."""
+    for key in (f"slam.method.{name}", f"slam.{name}"):
+        if key in settings:
+            return key
+    return None
+
+
+def _ablation_rows(board: Leaderboard, fields: Sequence[str], full: str
                    ) -> list[tuple[RowKey, dict]]:
-    """Rows whose settings equal the full method's except for ``keys``."""
+    """Rows whose settings equal the full method's except for the SLAM ``fields``; each with
+    its values of those fields."""
     refs = [r for r in board.rows if r.method == full]
     if not refs:
         return []
     ref = _settings(board, refs[0])
-    if not all(k in ref for k in keys):
+    keys = [_setting_key(ref, f) for f in fields]
+    if any(k is None for k in keys):
         return []
     rest = {k: v for k, v in ref.items() if k not in keys}
     out = []
     for row in board.rows:
         s = _settings(board, row)
         if all(k in s for k in keys) and {k: v for k, v in s.items() if k not in keys} == rest:
-            out.append((row, s))
+            out.append((row, {f: s[k] for f, k in zip(fields, keys, strict=True)}))
     return out
 
 
 def ablation_events_table(board: Leaderboard, full: str = "egs") -> PaperTable | None:
     """Check-mark columns Event Tracking / Event Mapping, ATE / PSNR / SSIM / LPIPS per
     sequence (Tab. III; with ATE only it is Tab. IV)."""
-    found = _ablation_rows(board, EVENT_KEYS, full)
-    if len({(s[EVENT_KEYS[0]], s[EVENT_KEYS[1]]) for _, s in found}) < 2:
+    found = _ablation_rows(board, EVENT_FIELDS, full)
+    if len({(s[EVENT_FIELDS[0]], s[EVENT_FIELDS[1]]) for _, s in found}) < 2:
         return None
-    found.sort(key=lambda rs: (bool(rs[1][EVENT_KEYS[0]]), bool(rs[1][EVENT_KEYS[1]]),
+    found.sort(key=lambda rs: (bool(rs[1][EVENT_FIELDS[0]]), bool(rs[1][EVENT_FIELDS[1]]),
                                not rs[0].complete, rs[0].label))
     rows = [r for r, _ in found]
-    stubs = [[CHECK if s[EVENT_KEYS[0]] else CROSS, CHECK if s[EVENT_KEYS[1]] else CROSS]
+    stubs = [[CHECK if s[EVENT_FIELDS[0]] else CROSS, CHECK if s[EVENT_FIELDS[1]] else CROSS]
              for _, s in found]
     keys = [k for k in ("ate", "psnr", "ssim", "lpips") if k in board.metrics]
     columns = [Column(s, k) for s in board.sequences for k in keys]
@@ -355,13 +367,13 @@ def ablation_events_table(board: Leaderboard, full: str = "egs") -> PaperTable |
 
 def ablation_crf_table(board: Leaderboard, full: str = "egs") -> PaperTable | None:
     """``w/o CRF`` / ``w CRF`` rows, ATE per sequence (Tab. V)."""
-    found = _ablation_rows(board, (CRF_KEY,), full)
-    if len({s[CRF_KEY] for _, s in found}) < 2:
+    found = _ablation_rows(board, (CRF_FIELD,), full)
+    if len({s[CRF_FIELD] for _, s in found}) < 2:
         return None
     names = {"identity": "w/o CRF", "learnable": "w CRF"}
-    found.sort(key=lambda rs: (rs[1][CRF_KEY] == "learnable", rs[0].label))
+    found.sort(key=lambda rs: (rs[1][CRF_FIELD] == "learnable", rs[0].label))
     rows = [r for r, _ in found]
-    stubs = [[names.get(s[CRF_KEY], f"CRF {s[CRF_KEY]}") + (f" ({r.label})" if r.method != full
+    stubs = [[names.get(s[CRF_FIELD], f"CRF {s[CRF_FIELD]}") + (f" ({r.label})" if r.method != full
                                                             else " (ours)")]
              for r, s in found]
     columns = [Column(s, "ate") for s in board.sequences]

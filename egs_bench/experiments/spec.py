@@ -294,8 +294,10 @@ def _method_name(method: str, where: Path | str) -> str:
 
 
 def _resolved_config(method: str, preset: str, options: Mapping[str, Any],
-                     where: Path | str) -> dict[str, Any] | None:
-    """The fully resolved SLAM configuration of a built-in method (``None`` for plugins)."""
+                     where: Path | str, meta: Mapping[str, Any] | None = None
+                     ) -> dict[str, Any] | None:
+    """The fully resolved SLAM configuration of a built-in method on a sequence with ``meta``
+    (what its run writes to ``config.yaml``), ``None`` for plugins."""
     from egs_bench.runs.registry import get_method
     from egs_bench.slam.config import parse_overrides
     from egs_bench.slam.methods import ConfiguredSlamMethod
@@ -308,7 +310,7 @@ def _resolved_config(method: str, preset: str, options: Mapping[str, Any],
         return None
     try:  # the same typing rules as `egs-bench run --set`
         typed = parse_overrides([f"{k}={json.dumps(v)}" for k, v in options.items()])
-        return m.config(preset).replace(**typed).validate().to_dict()
+        return m.config(preset, dict(meta or {})).replace(**typed).validate().to_dict()
     except ConfigError as exc:
         raise InputError(where, f"{method} with preset {preset!r}: {exc}") from None
 
@@ -342,14 +344,15 @@ def expand(spec: SweepSpec, sequences: Mapping[str, Path], out: Path | None = No
     seen: set[str] = set()
     for entry in spec.sequences:
         seq_dir = Path(sequences[entry]).resolve()
-        seq_name = SeqReader.open(seq_dir, check_images=False).name
+        seq = SeqReader.open(seq_dir, check_images=False)
+        seq_name = seq.name
         fingerprint = sequence_fingerprint(seq_dir)
         for method in spec.methods:
             mname = _SAFE.sub("_", _method_name(method, where))
             for sname, soptions in spec.settings.items():
                 options = {**base_options, **soptions}
                 for preset in spec.presets:
-                    resolved = _resolved_config(method, preset, options, where)
+                    resolved = _resolved_config(method, preset, options, where, seq.meta)
                     for device in spec.devices:
                         tag = _tag([sname if named_settings else "",
                                     preset if len(spec.presets) > 1 else "",

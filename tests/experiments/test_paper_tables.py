@@ -16,7 +16,7 @@ from egs_bench.experiments.paper_tables import (
 from egs_bench.runs.folder import RunFolder
 
 BASE_SLAM = {"event_tracking": True, "event_mapping": True, "crf": "learnable",
-             "n_segments": 3, "lambda_d": 0.1}
+             "blur_model": True, "lambda_d": 0.1}
 METHODS = {
     "egs": {},
     "egs-no-event-tracking": {"event_tracking": False},
@@ -24,7 +24,7 @@ METHODS = {
     "egs-no-events": {"event_tracking": False, "event_mapping": False},
     "egs-no-crf": {"crf": "identity"},
     # same flags as egs-no-events but other settings too: not part of the ablation
-    "monogs": {"event_tracking": False, "event_mapping": False, "n_segments": 1,
+    "monogs": {"event_tracking": False, "event_mapping": False, "blur_model": False,
                "crf": "identity"},
 }
 ATE_CM = {"egs": 1.0, "egs-no-event-tracking": 3.0, "egs-no-event-mapping": 1.5,
@@ -35,8 +35,10 @@ def _runs(root, methods=METHODS, seqs=("room0", "office1"), seeds=(0, 1)):
     for m, changes in methods.items():
         for si, seq in enumerate(seqs):
             for seed in seeds:
+                flat = {**BASE_SLAM, **changes}  # config.yaml's nested layout
                 cfg = {"method": m, "preset": "cpu", "seed": seed, "frames": 40,
-                       "slam": {**BASE_SLAM, **changes}}
+                       "slam": {"method": {k: v for k, v in flat.items() if k != "lambda_d"},
+                                "loss": {"lambda_d": flat["lambda_d"]}}}
                 run = RunFolder.create(root / seq / m / f"seed{seed}", method=m,
                                        sequence_name=seq, sequence_path=None,
                                        groundtruth=root / "gt.txt", config=cfg)

@@ -177,8 +177,8 @@ def test_sweep_of_a_builtin_method_with_named_settings(tmp_path, monkeypatch, ti
     out = tmp_path / "out/runs/plane"
     cfg_base = yaml.safe_load((out / "monogs__base/seed0/config.yaml").read_text())
     cfg_short = yaml.safe_load((out / "monogs__short/seed0/config.yaml").read_text())
-    assert cfg_short["slam"]["tracking_iters"] == 5
-    assert cfg_base["slam"]["tracking_iters"] == cfg_short["slam"]["tracking_iters"] + 15  # cpu
+    assert cfg_short["slam"]["budget"]["tracking_iters"] == 5
+    assert cfg_base["slam"]["budget"]["tracking_iters"] == 20  # the cpu budget's
     record = json.loads((out / "monogs__short/seed0/sweep.json").read_text())
     assert record["identity"]["resolved"] == cfg_short["slam"]
     # the plane sequence's camera moves on a line: Umeyama alignment is degenerate, so the

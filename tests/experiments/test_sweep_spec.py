@@ -64,7 +64,8 @@ def test_expand_names_hashes_and_settings(tmp_path, seqs) -> None:
                        "sa/egs__low-d/seed1"]
     assert runs[0].run_dir == str((tmp_path / "out" / "runs" / ids[0]).resolve())
     low = next(r for r in runs if r.run_id == "sa/egs__low-d/seed0")
-    assert low.options == {"lambda_d": 0.05} and low.identity["resolved"]["lambda_d"] == 0.05
+    assert low.options == {"lambda_d": 0.05}
+    assert low.identity["resolved"]["loss"]["lambda_d"] == 0.05
     # stable: the same file expands to the same names and hashes
     assert [(r.run_id, r.config_hash) for r in expand(spec, seqs, tmp_path / "out")] == \
         [(r.run_id, r.config_hash) for r in runs]
@@ -77,7 +78,7 @@ def test_expand_names_hashes_and_settings(tmp_path, seqs) -> None:
     assert all(a.config_hash != b.config_hash for a, b in zip(runs, again, strict=True))
     forced = expand(spec, seqs, tmp_path / "out", extra_options={"tracking_iters": 3})
     assert forced[0].config_hash != runs[0].config_hash
-    assert forced[0].identity["resolved"]["tracking_iters"] == 3
+    assert forced[0].identity["resolved"]["budget"]["tracking_iters"] == 3
     # several presets / devices enter the folder name
     multi = parse_sweep({"methods": ["egs"], "sequences": ["a"], "preset": ["cpu", "paper"]},
                         "s.yaml")
@@ -92,7 +93,7 @@ def test_expand_rejects_bad_overrides_and_methods(tmp_path, seqs) -> None:
         expand(bad, seqs, tmp_path)
     typed = parse_sweep({"methods": ["egs"], "sequences": ["a"], "set": {"lambda_d": "x"}},
                         tmp_path / "s.yaml")
-    with pytest.raises(InputError, match="needs a float value"):
+    with pytest.raises(InputError, match="lambda_d needs a finite number"):
         expand(typed, seqs, tmp_path)
     unknown = parse_sweep({"methods": ["nosuch"], "sequences": ["a"]}, tmp_path / "s.yaml")
     with pytest.raises(InputError, match="unknown method 'nosuch'"):
