@@ -9,7 +9,7 @@ export EGS_BENCH_CACHE := $(CURDIR)/.cache/egs_bench
 export MPLBACKEND := Agg
 export OMP_WAIT_POLICY := PASSIVE
 
-.PHONY: setup demo test lint bench gpu-check clean
+.PHONY: setup demo test lint bench regress regress-baseline gpu-check clean
 
 setup: $(STAMP)
 
@@ -35,6 +35,16 @@ test: setup lint
 
 bench: setup
 	$(BIN)/python benchmarks/run_all.py
+
+# CI accuracy guard: a small sweep (rerun every time) checked against the committed baseline.
+regress: setup
+	$(BIN)/egs-bench sweep benchmarks/regress/sweep.yaml --force
+	$(BIN)/egs-bench regress benchmarks/regress/baseline.csv bench_out/regress
+
+# After an intended accuracy change: rerun the sweep and rewrite the committed baseline.
+regress-baseline: setup
+	$(BIN)/egs-bench sweep benchmarks/regress/sweep.yaml --force
+	$(BIN)/egs-bench regress benchmarks/regress/baseline.csv bench_out/regress --update
 
 # On a CUDA machine: builds gsplat, runs the CUDA tests, times egs/monogs (writes gpu_check.json).
 gpu-check:

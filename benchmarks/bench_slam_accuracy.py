@@ -26,6 +26,11 @@ invocations, see BENCHMARKS.md).
 
 ``--set`` overrides configuration fields of every (built-in) method, as ``egs-bench run --set``.
 
+The runs go through ``egs-bench sweep``'s machinery (:mod:`egs_bench.experiments`): one process
+per run, ``--jobs`` runs in parallel sharing the cores (one thread each), run folders under
+``<out>/runs/<seq>/<method>/seed<k>``, and a second invocation skips runs that finished with the
+same configuration (``--force`` reruns them, e.g. after a code change).
+
 Sequences are folders or names under $EGS_BENCH_DATA (built-in synthetic names are generated
 on first use).
 """
@@ -33,17 +38,16 @@ on first use).
 from __future__ import annotations
 
 import argparse
-import multiprocessing
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import pandas as pd
 
-from egs_bench.datasets.registry import load_sequence
-from egs_bench.eval.evaluate import evaluate_run
+from egs_bench.eval.results import read_run_result
+from egs_bench.experiments.spec import LocalOptions, SweepSpec
+from egs_bench.experiments.sweep import run_sweep
 from egs_bench.runs.registry import get_method
 from egs_bench.slam.config import parse_overrides
-from egs_bench.slam.methods import BUILTIN, ConfiguredSlamMethod
+from egs_bench.slam.methods import ConfiguredSlamMethod
 
 DEFAULT_METHODS = ["monogs", "monogs-edi", "egs-no-events", "egs-no-event-mapping",
                    "egs-no-event-tracking", "egs-no-crf", "egs-no-ne-loss", "egs"]
@@ -52,36 +56,34 @@ DEFAULT_METHODS = ["monogs", "monogs-edi", "egs-no-events", "egs-no-event-mappin
 MAIN_METHODS = ("egs", "monogs", "monogs-edi")
 
 
-def _run_one(job: tuple[str, str, int], args: argparse.Namespace) -> dict:
-    """Run and evaluate one (sequence, method) pair; a failure becomes an error row."""
-    if args.jobs > 1:  # share the cores between the parallel runs
-        import numba
-        import torch
-
-        # numba's own pool would otherwise take every core in each worker (measured: one
-        # 40-frame egs run 759 s instead of 204 s with two runs side by side)
-        numba.set_num_threads(1)
-        torch.set_num_threads(1)
-    name, method, seed = job
-    seq = load_sequence(name)
-    m = get_method(method) if method not in BUILTIN else BUILTIN[method]
-    run_dir = args.out / seq.name / method
-    if len(args.seeds) > 1:
-        run_dir = run_dir / f"seed{seed}"
-    extra = {"options": args.options} if args.options else {}
-    try:
-        m.run(seq, run_dir, preset=args.preset, device=args.device, seed=seed,
-              max_frames=args.max_frames, progress=args.jobs == 1, **extra)
-        met = evaluate_run(run_dir)
-    except Exception as exc:  # one failed run must not hide the others
-        return {"sequence": seq.name, "method": method, "seed": seed, "error": str(exc)[:80]}
-    r = met.get("rendering") or {}
-    return {
-        "sequence": seq.name, "method": method, "seed": seed,
-        "ate_cm": 100 * met["ate"]["rmse_m"] if met.get("ate") else None,
-        "psnr_db": r.get("psnr_db"), "ssim": r.get("ssim"),
-        "fps": (met.get("speed") or {}).get("fps"),
-    }
+def run_grid(args: argparse.Namespace) -> pd.DataFrame:
+    """Run (or resume) the benchmark's runs as sweeps and return one row per run."""
+    methods = args.methods.split(",")
+    ablation_seqs = args.ablation_seq or args.seq[:1]
+    main = [m for m in methods if m in MAIN_METHODS]
+    ablations = [m for m in methods if m not in MAIN_METHODS]
+    grids = [(main, args.seq), (ablations, [s for s in args.seq if s in ablation_seqs])]
+    run_dirs: list[Path] = []  # this invocation's runs only (not older runs in the folder)
+    for grid_methods, seqs in grids:
+        if not grid_methods or not seqs:
+            continue
+        spec = SweepSpec(path=None, methods=tuple(grid_methods), sequences=tuple(seqs),
+                         seeds=tuple(args.seeds), presets=(args.preset,),
+                         devices=(args.device,), max_frames=args.max_frames,
+                         options=dict(args.options), out=args.out,
+                         local=LocalOptions(jobs=args.jobs, threads_per_job=None))
+        report = run_sweep(spec, force=args.force, say=print)
+        run_dirs += [Path(r.run_dir) for r in report.runs]
+    rows = []
+    for r in (read_run_result(p, args.out / "runs") for p in run_dirs):
+        v = r.values
+        row = {"sequence": r.sequence, "method": r.method, "seed": r.seed,
+               "ate_cm": 100 * v["ate"] if "ate" in v else None, "psnr_db": v.get("psnr"),
+               "ssim": v.get("ssim"), "fps": v.get("fps")}
+        if r.status not in ("ok", "incomplete"):
+            row["error"] = f"{r.status}: {r.reason}"[:80]
+        rows.append(row)
+    return pd.DataFrame(rows)
 
 
 def summarise_seeds(runs: pd.DataFrame) -> pd.DataFrame:
@@ -137,6 +139,8 @@ def main() -> None:
                          "--seq); the others run egs and monogs only")
     ap.add_argument("--jobs", type=int, default=1,
                     help="runs in parallel (one torch thread each; FPS then reflects sharing)")
+    ap.add_argument("--force", action="store_true",
+                    help="rerun runs that finished earlier with the same configuration")
     ap.add_argument("--set", dest="overrides", action="append", default=[],
                     metavar="KEY=VALUE", help="configuration override for every method")
     ap.add_argument("--unblurred", action="append", default=[],
@@ -149,19 +153,7 @@ def main() -> None:
                             for m in args.methods.split(",")):
         ap.error("--set applies to built-in methods only")
 
-    ablation_seqs = set(args.ablation_seq or args.seq[:1])
-    jobs = [(name, method, seed) for name in args.seq for method in args.methods.split(",")
-            if method in MAIN_METHODS or name in ablation_seqs for seed in args.seeds]
-    for name in args.seq:  # generate built-in sequences once, before parallel runs race on them
-        load_sequence(name)
-    if args.jobs > 1:
-        # spawn: generating sequences above started OpenMP threads, and forking after that aborts
-        spawn = multiprocessing.get_context("spawn")
-        with ProcessPoolExecutor(args.jobs, mp_context=spawn) as pool:
-            rows = list(pool.map(_run_one, jobs, [args] * len(jobs)))
-    else:
-        rows = [_run_one(job, args) for job in jobs]
-    runs = pd.DataFrame(rows)
+    runs = run_grid(args)
     args.out.mkdir(parents=True, exist_ok=True)
     runs.to_csv(args.out / "runs.csv", index=False)
     df = summarise_seeds(runs)

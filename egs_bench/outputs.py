@@ -4,7 +4,8 @@
 
 * a path that does not exist is fine if its folder can be created and written;
 * an existing path needs ``overwrite``, and ``overwrite`` replaces only an output of the same
-  kind that egs-bench wrote: a PNG by a PNG, a PLY by a PLY, a text file by a text file, a
+  kind that egs-bench wrote: a PNG by a PNG, a figure (PNG, PDF or SVG) by a figure, a PLY by a
+  PLY, a text file by a text file, a
   sequence folder (``meta.yaml`` with ``generator.name: egs-bench`` and nothing but sequence
   files) by a sequence folder, a run folder (``run.yaml`` written by egs-bench) by a run folder;
   an empty folder counts as free for folder outputs;
@@ -27,7 +28,7 @@ import yaml
 
 from egs_bench.errors import OutputError, UnwritableOutputError
 
-OutputKind = Literal["png", "ply", "text", "sequence", "run"]
+OutputKind = Literal["png", "figure", "ply", "text", "sequence", "run"]
 
 _PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 _SEQUENCE_ENTRIES = {"meta.yaml", "frames.csv", "events.h5", "groundtruth.txt",
@@ -37,7 +38,8 @@ _FRAME_FILE = re.compile(r"^\d{6,}\.(png|npy)$")
 
 
 def _describe(kind: OutputKind) -> str:
-    return {"png": "a PNG image", "ply": "a PLY file", "text": "a text file",
+    return {"png": "a PNG image", "figure": "a PNG, PDF or SVG figure", "ply": "a PLY file",
+            "text": "a text file",
             "sequence": "a sequence folder written by egs-bench",
             "run": "a run folder written by egs-bench"}[kind]
 
@@ -73,9 +75,16 @@ def _check_not_input(out: Path, inputs: Iterable[str | Path | None], shown: Path
             raise OutputError(shown, f"is inside the input {item}; refusing to replace it")
 
 
+# Files that may precede a run in its folder: the run lock (left by an earlier run) and what a
+# launcher writes before starting the run (the sweep worker's record and log,
+# :mod:`egs_bench.experiments.worker`).
+RUN_PRELUDE_FILES = frozenset({".lock", "sweep.json", "worker.log"})
+
+
 def _is_empty(folder: Path) -> bool:
-    """No entries other than a run folder's lock file (left by an earlier run)."""
-    return all(entry.name == ".lock" and entry.is_file() for entry in folder.iterdir())
+    """No entries other than :data:`RUN_PRELUDE_FILES`."""
+    return all(entry.name in RUN_PRELUDE_FILES and entry.is_file()
+               for entry in folder.iterdir())
 
 
 def _check_writable_location(path: Path) -> None:
@@ -146,6 +155,10 @@ def _same_kind(path: Path, kind: OutputKind) -> tuple[bool, str]:
         return head.startswith(_PNG_SIGNATURE), "is not a PNG image"
     if kind == "ply":
         return head.startswith(b"ply"), "is not a PLY file"
+    if kind == "figure":
+        is_figure = head.startswith((_PNG_SIGNATURE, b"%PDF")) or (
+            b"<svg" in head and head.lstrip().startswith((b"<?xml", b"<svg")))
+        return is_figure, "is not a PNG, PDF or SVG figure"
     try:
         head.decode("utf-8")
         text_ok = b"\0" not in head
@@ -199,7 +212,8 @@ def prepare_output(path: str | Path, kind: OutputKind, *, overwrite: bool = Fals
     out = _resolve(shown)
     exists = shown.exists() or shown.is_symlink()
     # a file inside an input folder may be part of the input (a frame, a map): never replaced
-    _check_not_input(out, inputs, shown, replacing=exists and kind in ("png", "ply", "text"))
+    _check_not_input(out, inputs, shown,
+                     replacing=exists and kind in ("png", "figure", "ply", "text"))
     if exists:
         protected = _protected(out)
         if protected:

@@ -39,6 +39,7 @@ _COMMAND_MODULES = (
     "slam_cmds",
     "interop_cmds",
     "recording_cmds",
+    "experiment_cmds",
 )
 
 

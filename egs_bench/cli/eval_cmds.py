@@ -156,7 +156,10 @@ def compare_images_cmd(
 @app.command("leaderboard")
 def leaderboard_cmd(
     runs_root: Path = typer.Argument(..., help="Folder searched recursively for run folders."),
-    fmt: str = typer.Option("md", "--format", "-f", help="Output format: md, latex or csv."),
+    fmt: str = typer.Option("md", "--format", "-f",
+                            help="Output format: md, latex, csv (one row per run, units in the "
+                                 "column names) or csv-summary (mean/std per method, settings "
+                                 "and sequence)."),
     by: str = typer.Option("sequence", "--by",
                            help="Column groups: sequence (rows = methods) or method."),
     protocol: str = typer.Option(DEFAULT_PROTOCOL, "--protocol", "-p",
@@ -169,8 +172,15 @@ def leaderboard_cmd(
                                        help="Write the table to this file instead of stdout."),
     overwrite: bool = typer.Option(False, "--overwrite",
                                    help="Replace an existing text file at --output."),
+    caption: str | None = typer.Option(None, "--caption", help="LaTeX caption."),
+    label: str | None = typer.Option(None, "--label",
+                                     help="LaTeX label (default tab:<RUNS_ROOT name>)."),
+    width: str = typer.Option("auto", "--width",
+                              help="LaTeX width: auto, natural, column (shrink to the column) "
+                                   "or page (table* shrunk to the text width)."),
 ) -> None:
-    """Leaderboard table of all runs under RUNS_ROOT (best bold, second underlined)."""
+    """Leaderboard of all runs under RUNS_ROOT: mean ± std over seeds, best bold, second
+    underlined."""
     from egs_bench.eval.leaderboard import leaderboard
     from egs_bench.fileio import write_text_atomic
     from egs_bench.outputs import prepare_output
@@ -180,7 +190,8 @@ def leaderboard_cmd(
                        option="--output")
     text = leaderboard(runs_root, fmt=fmt, by=by, protocol=protocol,
                        metrics=[m.strip() for m in metrics.split(",") if m.strip()],
-                       evaluate_missing=not no_eval)
+                       evaluate_missing=not no_eval, caption=caption, label=label,
+                       width=width)
     if output is not None:
         write_text_atomic(output, text)
         _out.print(f"wrote {output}")

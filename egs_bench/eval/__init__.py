@@ -8,7 +8,11 @@ Modules (each with one job):
 - :mod:`~egs_bench.eval.lpips`: LPIPS v0.1 (AlexNet / VGG16) without torchvision or downloads;
 - :mod:`~egs_bench.eval.protocols`: named presets (``egs``, ``monogs``);
 - :mod:`~egs_bench.eval.evaluate`: scores one run folder into ``metrics.json``;
+- :mod:`~egs_bench.eval.results`: one robust record per run folder (status, seed, settings);
+- :mod:`~egs_bench.eval.grouping`: runs grouped by (method, settings, sequence), mean +- std;
 - :mod:`~egs_bench.eval.leaderboard`: Markdown / LaTeX / CSV tables over many runs;
+- :mod:`~egs_bench.eval.tables`: cell formatting, ranks and LaTeX floats shared by tables;
 - :mod:`~egs_bench.eval.plots`: trajectory, ATE-over-time and qualitative figures;
+- :mod:`~egs_bench.eval.figures`: comparisons across methods (trajectories, zoomed grids);
 - :mod:`~egs_bench.eval.compare`: two-image comparison (files read by :mod:`egs_bench.images`).
 """

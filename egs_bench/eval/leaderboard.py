@@ -1,17 +1,25 @@
 """Leaderboards from a folder of run folders: Markdown, LaTeX (booktabs) or CSV.
 
-One row per method and one column per (sequence, metric), plus the average over sequences,
-like the tables of GS-SLAM papers (``by="sequence"``); ``by="method"`` puts sequences in rows.
-The best value of each comparison is bold and the second underlined, in the metric's direction
-(lower is better for ATE and LPIPS). Ranks use the displayed (rounded) values, ties share a rank.
-Missing, failed or unevaluable runs show ``--``; runs that lost tracking show ``L``; footnotes
-say why. A bad run never stops the table: it becomes a footnote.
+Runs are grouped by (method, settings, sequence) (:mod:`egs_bench.eval.grouping`): repeats with
+different seeds give ``mean ± std`` with the number of runs shown where it differs from the
+rest. ``by="sequence"`` makes one row per method/settings and one column group per sequence plus
+the average over sequences (given only when a row has every sequence), like the tables of
+GS-SLAM papers; ``by="method"`` puts sequences in rows. The best mean of each comparison is bold
+and the second underlined, in the metric's direction (lower is better for ATE and LPIPS), ranked
+on the displayed rounded values, ties sharing a rank. Runs that cover fewer frames than their
+sequence form their own ``[partial]`` rows that never compete with complete rows (only among
+themselves, in a column without complete values). Missing, failed or unreadable
+runs show ``--``, runs that lost tracking ``L``, and a footnote says why: a bad run folder
+never stops the table.
+
+CSV output is long-format (one row per run, units in the column names, numeric columns stay
+numeric, a ``status`` column); ``csv-summary`` has one row per (method, settings, sequence)
+with ``<metric>_mean``, ``<metric>_std`` and the run counts.
 """
 
 from __future__ import annotations
 
 import math
-import re
 from collections.abc import Sequence as Seq
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -19,323 +27,310 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from egs_bench.errors import ConfigError, EgsBenchError, InputError
+from egs_bench.errors import ConfigError
+from egs_bench.eval.grouping import LOST, MISSING, Cell, RowKey, Stat, cell_notes, group_runs
 from egs_bench.eval.protocols import DEFAULT_PROTOCOL
-from egs_bench.runs.folder import RunFolder, find_runs
+from egs_bench.eval.results import (
+    DEFAULT_METRICS,
+    METRICS,
+    ResultSet,
+    collect_results,
+    results_frame,
+)
+from egs_bench.eval.tables import (
+    common_n,
+    dense_ranks,
+    estimate_width_pt,
+    format_stat,
+    header,
+    latex_escape,
+    slug,
+    wrap_latex_table,
+)
 
-FORMATS = ("md", "latex", "csv")
+FORMATS = ("md", "latex", "csv", "csv-summary")
 LAYOUTS = ("sequence", "method")
-MISSING = "--"
-LOST = "L"
 AVERAGE = "Avg."
 
-
-@dataclass(frozen=True)
-class MetricSpec:
-    """A leaderboard metric: label, unit-conversion from metrics.json, direction, decimals."""
-
-    key: str
-    label: str
-    higher_is_better: bool
-    decimals: int
-
-
-METRICS: dict[str, MetricSpec] = {
-    "ate": MetricSpec("ate", "ATE [cm]", False, 2),
-    "psnr": MetricSpec("psnr", "PSNR [dB]", True, 2),
-    "ssim": MetricSpec("ssim", "SSIM", True, 3),
-    "lpips": MetricSpec("lpips", "LPIPS", False, 3),
-    "fps": MetricSpec("fps", "FPS", True, 2),
-}
-DEFAULT_METRICS = ("ate", "psnr", "ssim", "lpips")
-
-
-def _metric_value(metrics: dict, key: str) -> float | None:
-    ate, rendering, speed = metrics.get("ate"), metrics.get("rendering"), metrics.get("speed")
-    value = None
-    if key == "ate" and ate:
-        value = ate.get("rmse_m")
-        value = None if value is None else 100.0 * value
-    elif key in ("psnr", "ssim", "lpips") and rendering:
-        value = rendering.get({"psnr": "psnr_db"}.get(key, key))
-    elif key == "fps" and speed:
-        value = speed.get("fps")
-    return None if value is None or not math.isfinite(value) else float(value)
+__all__ = ["AVERAGE", "DEFAULT_METRICS", "FORMATS", "LAYOUTS", "LOST", "METRICS", "MISSING",
+           "Leaderboard", "build", "collect", "leaderboard", "render_csv", "render_csv_summary",
+           "render_latex", "render_markdown", "to_frame"]
 
 
 @dataclass
 class Leaderboard:
-    """Collected results: ``values[(method, sequence)][metric]`` plus per-cell states.
+    """Grouped results.
 
     Attributes:
-        methods, sequences: sorted names.
-        metrics: metric keys shown (columns with no value at all are dropped).
-        values: numbers per (method, sequence) and metric.
-        lost: (method, sequence) pairs whose run lost tracking.
-        notes: footnotes (one per problem: missing run, failed run, unreadable files).
+        rows: table rows (method + settings, complete rows first).
+        sequences: sorted sequence names.
+        metrics: metric keys shown (metrics with no value at all are dropped).
+        cells: the runs and statistics per (row, sequence).
+        notes: footnotes (unreadable folders, missing/failed/lost runs, partial coverage).
         protocol: protocol name the numbers were computed under.
+        results: the per-run results the board was built from.
     """
 
-    methods: list[str]
+    rows: list[RowKey]
     sequences: list[str]
     metrics: list[str]
-    values: dict[tuple[str, str], dict[str, float]]
-    lost: set[tuple[str, str]] = field(default_factory=set)
+    cells: dict[tuple[RowKey, str], Cell]
     notes: list[str] = field(default_factory=list)
     protocol: str = DEFAULT_PROTOCOL
+    results: ResultSet | None = None
+
+    def stat(self, row: RowKey, sequence: str, key: str) -> Stat | None:
+        cell = self.cells.get((row, sequence))
+        return None if cell is None else cell.stats.get(key)
+
+    def marker(self, row: RowKey, sequence: str) -> str:
+        cell = self.cells.get((row, sequence))
+        return MISSING if cell is None else cell.marker
+
+    def average(self, row: RowKey, key: str) -> Stat | None:
+        """Mean over the sequences of a row's means (``None`` unless it has every sequence);
+        a derived value (``n == 0``: no spread, no count)."""
+        stats = [self.stat(row, s, key) for s in self.sequences]
+        if not stats or any(s is None for s in stats):
+            return None
+        return Stat(float(np.mean([s.mean for s in stats])), math.nan, 0)
+
+
+def _check_metrics(metrics: Seq[str]) -> None:
+    for key in metrics:
+        if key not in METRICS:
+            raise ConfigError(f"unknown metric {key!r}; choose from {', '.join(METRICS)}")
+
+
+def build(results: ResultSet, metrics: Seq[str] = DEFAULT_METRICS) -> Leaderboard:
+    """Group ``results`` into a :class:`Leaderboard` with its footnotes."""
+    _check_metrics(metrics)
+    rows, sequences, cells = group_runs(results.runs, metrics)
+    notes = [f"{r.rel}: skipped ({r.reason})" for r in results.runs
+             if r.method is None or r.sequence is None]
+    for row in rows:
+        for s in sequences:
+            notes.extend(cell_notes(row, s, cells.get((row, s))))
+    shown = [k for k in metrics if any(k in c.stats for c in cells.values())] or list(metrics)
+    return Leaderboard(rows, sequences, shown, cells, list(dict.fromkeys(notes)),
+                       results.protocol, results)
 
 
 def collect(runs_root: str | Path, protocol: str = DEFAULT_PROTOCOL,
             metrics: Seq[str] = DEFAULT_METRICS, evaluate_missing: bool = True) -> Leaderboard:
-    """Read every run folder under ``runs_root`` into a :class:`Leaderboard`.
-
-    Runs whose ``metrics.json`` is missing (or was computed under another protocol) are
-    evaluated when ``evaluate_missing`` (a missing ``metrics.json`` is written; another
-    protocol's file is left alone). Problems with single runs become footnotes.
+    """Read every run folder under ``runs_root`` and group it (see :func:`build`).
 
     Raises:
         InputError: ``runs_root`` is missing or holds no run folder.
         ConfigError: unknown metric.
     """
-    from egs_bench.eval.evaluate import evaluate_run, read_metrics
-
-    for key in metrics:
-        if key not in METRICS:
-            raise ConfigError(f"unknown metric {key!r}; choose from {', '.join(METRICS)}")
-    paths = find_runs(runs_root)
-    root = Path(runs_root)
-    if not paths:
-        raise InputError(root, "holds no run folders (no run.yaml found)")
-    values: dict[tuple[str, str], dict[str, float]] = {}
-    lost: set[tuple[str, str]] = set()
-    noted: set[tuple[str, str]] = set()  # cells that already have a footnote
-    notes: list[str] = []
-    methods: set[str] = set()
-    sequences: set[str] = set()
-    for path in paths:
-        rel = path.relative_to(root) if path != root else Path(".")
-        try:
-            run = RunFolder.open(path)
-        except EgsBenchError as exc:
-            notes.append(f"{rel}: skipped ({exc})")
-            continue
-        cell = (run.method, run.sequence_name)
-        what = f"{run.method} on {run.sequence_name}"
-        methods.add(run.method)
-        sequences.add(run.sequence_name)
-        if cell in values or cell in lost or cell in noted:
-            notes.append(f"{rel}: another run of {what} came first (sorted by path); ignored")
-            continue
-        try:
-            status = run.read_status()
-            if status.state == "failed":
-                if status.tracking_lost:
-                    lost.add(cell)
-                    notes.append(f"{LOST}: {what} lost tracking ({status.reason})")
-                else:
-                    noted.add(cell)
-                    notes.append(f"{MISSING}: {what} failed ({status.reason})")
-                continue
-            if status.state != "done":
-                noted.add(cell)
-                notes.append(f"{MISSING}: {what} is still {status.state}")
-                continue
-            data = None
-            if run.metrics_path.is_file():
-                data = read_metrics(path)
-                if data.get("protocol", {}).get("name") != protocol:
-                    data = None
-            if data is None:
-                if not evaluate_missing:
-                    noted.add(cell)
-                    notes.append(f"{MISSING}: {what} not evaluated under protocol {protocol!r}")
-                    continue
-                data = evaluate_run(path, protocol, write=not run.metrics_path.is_file())
-        except EgsBenchError as exc:
-            noted.add(cell)
-            notes.append(f"{MISSING}: {what}: {exc}")
-            continue
-        values[cell] = {k: v for k in metrics if (v := _metric_value(data, k)) is not None}
-        cov = data.get("coverage") or {}
-        if cov and cov.get("frames_processed", 0) < cov.get("frames_in_sequence", 0):
-            notes.append(f"{what}: covers only {cov['frames_processed']} of "
-                         f"{cov['frames_in_sequence']} frames")
-    shown = [k for k in metrics if any(k in v for v in values.values())] or list(metrics)
-    methods_sorted, sequences_sorted = sorted(methods), sorted(sequences)
-    for m in methods_sorted:
-        for s in sequences_sorted:
-            if (m, s) not in values and (m, s) not in lost and (m, s) not in noted:
-                notes.append(f"{MISSING}: no run of {m} on {s}")
-    return Leaderboard(methods_sorted, sequences_sorted, shown, values, lost, notes, protocol)
+    _check_metrics(metrics)
+    return build(collect_results(runs_root, protocol, evaluate_missing), metrics)
 
 
-def to_frame(board: Leaderboard, by: str = "sequence") -> tuple[pd.DataFrame, pd.DataFrame]:
-    """Numeric table and its cell markers.
+@dataclass
+class TableData:
+    """A board laid out as frames with MultiIndex columns ``(group, metric)``.
 
-    Returns:
-        ``(numbers, markers)``: ``numbers`` float DataFrame (NaN where no value) with
-        MultiIndex columns ``(group, metric_key)``; ``markers`` the same shape with ``""``,
-        ``"--"`` or ``"L"``. ``by="sequence"``: rows are methods, groups are sequences plus
-        ``Avg.`` (mean over all sequences, only when a method has all of them). ``by="method"``:
-        rows are sequences plus ``Avg.``, groups are methods.
+    ``mean``/``std`` are in stored units (NaN where no value), ``n`` the run counts, ``marker``
+    ``""``/``"--"``/``"L"``, ``ranked`` False for rows that must not be ranked (partial runs).
     """
+
+    mean: pd.DataFrame
+    std: pd.DataFrame
+    n: pd.DataFrame
+    marker: pd.DataFrame
+    ranked: pd.Series
+
+
+def to_frame(board: Leaderboard, by: str = "sequence") -> TableData:
+    """Lay out ``board``: ``by="sequence"`` rows are methods (labels), groups are sequences plus
+    ``Avg.``; ``by="method"`` rows are sequences plus ``Avg.``, groups are methods."""
     if by not in LAYOUTS:
         raise ConfigError(f"unknown layout {by!r}; choose one of {', '.join(LAYOUTS)}")
-    avg: dict[tuple[str, str], float] = {}
-    for m in board.methods:
-        for k in board.metrics:
-            vals = [board.values.get((m, s), {}).get(k) for s in board.sequences]
-            if vals and all(v is not None for v in vals):
-                avg[(m, k)] = float(np.mean(vals))
-
-    def cell(m: str, s: str, k: str) -> tuple[float, str]:
-        if s == AVERAGE:
-            v = avg.get((m, k))
-            return (v, "") if v is not None else (math.nan, MISSING)
-        v = board.values.get((m, s), {}).get(k)
-        if v is not None:
-            return v, ""
-        return math.nan, LOST if (m, s) in board.lost else MISSING
-
     seq_groups = board.sequences + ([AVERAGE] if len(board.sequences) > 1 else [])
+    labels = [r.label for r in board.rows]
     if by == "sequence":
-        rows, groups = board.methods, seq_groups
-        get = lambda r, g, k: cell(r, g, k)  # noqa: E731
+        index, groups = labels, seq_groups
     else:
-        rows, groups = seq_groups, board.methods
-        get = lambda r, g, k: cell(g, r, k)  # noqa: E731
+        index, groups = seq_groups, labels
     columns = pd.MultiIndex.from_tuples([(g, k) for g in groups for k in board.metrics])
-    numbers = pd.DataFrame(math.nan, index=pd.Index(rows), columns=columns, dtype=float)
-    markers = pd.DataFrame("", index=pd.Index(rows), columns=columns, dtype=object)
-    for r in rows:
-        for g in groups:
+    mean = pd.DataFrame(math.nan, index=pd.Index(index), columns=columns, dtype=float)
+    std = mean.copy()
+    n = pd.DataFrame(0, index=pd.Index(index), columns=columns, dtype=int)
+    marker = pd.DataFrame("", index=pd.Index(index), columns=columns, dtype=object)
+    ranked = pd.Series(True, index=pd.Index(labels))
+    for row in board.rows:
+        ranked[row.label] = row.complete
+        for s in seq_groups:
             for k in board.metrics:
-                v, mk = get(r, g, k)
-                numbers.loc[r, (g, k)] = v
-                markers.loc[r, (g, k)] = mk
-    return numbers, markers
+                if s == AVERAGE:
+                    st, mk = board.average(row, k), MISSING
+                else:
+                    st, mk = board.stat(row, s, k), board.marker(row, s) or MISSING
+                at = (row.label, (s, k)) if by == "sequence" else (s, (row.label, k))
+                if st is None:
+                    marker.loc[at[0], at[1]] = mk
+                else:
+                    mean.loc[at[0], at[1]] = st.mean
+                    std.loc[at[0], at[1]] = st.std
+                    n.loc[at[0], at[1]] = st.n
+    return TableData(mean, std, n, marker, ranked)
 
 
-def _ranks(numbers: pd.DataFrame, by: str) -> pd.DataFrame:
-    """1 for best, 2 for second, 0 otherwise, comparing methods (rounded values, dense ranks)."""
-    ranks = pd.DataFrame(0, index=numbers.index, columns=numbers.columns, dtype=int)
-
-    def rank_values(values: pd.Series, key: str) -> pd.Series:
-        spec = METRICS[key]
-        r = values.round(spec.decimals).rank(method="dense", ascending=not spec.higher_is_better)
-        return r.where(r <= 2, 0).fillna(0).astype(int)
-
-    if by == "sequence":  # methods are rows: rank down each column
-        for col in numbers.columns:
-            ranks[col] = rank_values(numbers[col], col[1])
+def _ranks(data: TableData, by: str) -> pd.DataFrame:
+    """1 best, 2 second, 0 otherwise; partial rows never compete with complete ones."""
+    mean = data.mean.copy()
+    ranks = pd.DataFrame(0, index=mean.index, columns=mean.columns, dtype=int)
+    if by == "sequence":  # rows are methods: rank down each column
+        full = data.ranked.reindex(mean.index).to_numpy()
+        for col in mean.columns:
+            ranks[col] = dense_ranks(_competing(mean[col], full), col[1])
     else:  # methods are column groups: rank across the groups, per row and metric
-        for row in numbers.index:
-            for key in numbers.columns.get_level_values(1).unique():
-                cols = [c for c in numbers.columns if c[1] == key]
-                ranks.loc[row, cols] = rank_values(numbers.loc[row, cols], key).to_numpy()
+        for row in mean.index:
+            for key in mean.columns.get_level_values(1).unique():
+                cols = [c for c in mean.columns if c[1] == key]
+                full = np.array([bool(data.ranked[c[0]]) for c in cols])
+                values = _competing(mean.loc[row, cols], full)
+                ranks.loc[row, cols] = dense_ranks(values, key).to_numpy()
     return ranks
 
 
-def _format_cells(numbers: pd.DataFrame, markers: pd.DataFrame, ranks: pd.DataFrame,
-                  best: str, second: str) -> pd.DataFrame:
-    out = pd.DataFrame("", index=numbers.index, columns=numbers.columns, dtype=object)
-    for col in numbers.columns:
-        spec = METRICS[col[1]]
-        for row in numbers.index:
-            v = numbers.loc[row, col]
+def _competing(values: pd.Series, complete: np.ndarray) -> pd.Series:
+    """Values that compete for a rank: complete rows' only, unless none has a value (then the
+    partial rows compete among themselves)."""
+    full = values.where(complete)
+    return full if full.notna().any() else values
+
+
+def _cells(data: TableData, by: str, style: str) -> tuple[pd.DataFrame, int]:
+    ranks = _ranks(data, by)
+    usual = common_n(data.n.to_numpy().ravel())
+    out = pd.DataFrame("", index=data.mean.index, columns=data.mean.columns, dtype=object)
+    for col in data.mean.columns:
+        for row in data.mean.index:
+            v = data.mean.loc[row, col]
             if math.isnan(v):
-                out.loc[row, col] = markers.loc[row, col]
+                out.loc[row, col] = data.marker.loc[row, col]
                 continue
-            text = f"{v:.{spec.decimals}f}"
-            rank = ranks.loc[row, col]
-            out.loc[row, col] = best.format(text) if rank == 1 else (
-                second.format(text) if rank == 2 else text)
-    return out
+            stat = Stat(float(v), float(data.std.loc[row, col]), int(data.n.loc[row, col]))
+            out.loc[row, col] = format_stat(stat, col[1], int(ranks.loc[row, col]), style, usual)
+    return out, usual
 
 
-def _header(key: str, arrows: tuple[str, str]) -> str:
-    spec = METRICS[key]
-    return f"{spec.label} {arrows[0] if spec.higher_is_better else arrows[1]}"
-
-
-def _legend(board: Leaderboard, quote: str = "`") -> list[str]:
-    lines = [f"Protocol {quote}{board.protocol}{quote}. Best in bold, second underlined. "
-             f"{MISSING}: no result; {LOST}: tracking lost."]
-    return lines + sorted(set(board.notes), key=board.notes.index)
+def _legend(board: Leaderboard, usual_n: int, quote: str = "`", pm: str = "±") -> list[str]:
+    spread = (f" Cells: mean {pm} std over {usual_n} runs (seeds) unless (n=k) says otherwise."
+              if usual_n > 1 else "")
+    lines = [f"Protocol {quote}{board.protocol}{quote}. Best in bold, second underlined."
+             f"{spread} {MISSING}: no result; {LOST}: tracking lost."]
+    return lines + board.notes
 
 
 def render_markdown(board: Leaderboard, by: str = "sequence") -> str:
     """GitHub Markdown table (underline as ``<u>``) followed by numbered footnotes."""
-    numbers, markers = to_frame(board, by)
-    cells = _format_cells(numbers, markers, _ranks(numbers, by), "**{}**", "<u>{}</u>")
-    cells.columns = [f"{g} {_header(k, ('↑', '↓'))}" for g, k in numbers.columns]
-    first = "Method" if by == "sequence" else "Sequence"
-    cells.index.name = first
+    data = to_frame(board, by)
+    cells, usual = _cells(data, by, "md")
+    cells.columns = [f"{g} {header(k, 'md')}" for g, k in data.mean.columns]
+    cells.index.name = "Method" if by == "sequence" else "Sequence"
     table = cells.reset_index().to_markdown(index=False, disable_numparse=True,
                                              colalign=["left"] + ["center"] * len(cells.columns))
-    notes = "\n".join(f"{i}. {n}" if i else n for i, n in enumerate(_legend(board)))
+    notes = "\n".join(f"{i}. {n}" if i else n for i, n in enumerate(_legend(board, usual)))
     return f"{table}\n\n{notes}\n"
 
 
-_LATEX_SPECIAL = {"\\": r"\textbackslash{}", "&": r"\&", "%": r"\%", "$": r"\$", "#": r"\#",
-                  "_": r"\_", "{": r"\{", "}": r"\}", "~": r"\textasciitilde{}",
-                  "^": r"\textasciicircum{}"}
+def render_latex(board: Leaderboard, by: str = "sequence", caption: str | None = None,
+                 label: str | None = None, width: str = "auto", notes: bool = True) -> str:
+    """A booktabs table in a float (needs ``\\usepackage{booktabs,graphicx}``).
 
-
-def _latex_escape(text: str) -> str:
-    return re.sub(r"[\\&%$#_{}~^]", lambda m: _LATEX_SPECIAL[m.group(0)], text)
-
-
-def render_latex(board: Leaderboard, by: str = "sequence",
-                 caption: str = "Results.", label: str = "tab:results") -> str:
-    """A ``table`` environment with booktabs rules (needs ``\\usepackage{booktabs}``)."""
-    numbers, markers = to_frame(board, by)
-    cells = _format_cells(numbers, markers, _ranks(numbers, by), r"\textbf{{{}}}",
-                          r"\underline{{{}}}")
-    groups = list(dict.fromkeys(numbers.columns.get_level_values(0)))
+    Args:
+        caption: caption text (plain text, escaped here); default names the protocol.
+        label: ``\\label`` key; ``None`` writes no label.
+        width: ``auto``, ``natural``, ``column`` or ``page`` (see
+            :func:`egs_bench.eval.tables.wrap_latex_table`).
+        notes: print the legend and footnotes under the table.
+    """
+    data = to_frame(board, by)
+    cells, usual = _cells(data, by, "latex")
+    groups = list(dict.fromkeys(data.mean.columns.get_level_values(0)))
     keys = board.metrics
     n = len(keys)
-    lines = [r"\begin{table}", r"\centering", rf"\caption{{{_latex_escape(caption)}}}",
-             rf"\label{{{label}}}", r"\begin{tabular}{l" + "c" * (len(groups) * n) + "}",
-             r"\toprule"]
     first = "Method" if by == "sequence" else "Sequence"
-    lines.append(" & ".join([""] + [rf"\multicolumn{{{n}}}{{c}}{{{_latex_escape(g)}}}"
-                                    for g in groups]) + r" \\")
-    rules = [rf"\cmidrule(lr){{{2 + i * n}-{1 + (i + 1) * n}}}" for i in range(len(groups))]
-    lines.append(" ".join(rules))
-    heads = [_latex_escape(METRICS[k].label) + (r" $\uparrow$" if METRICS[k].higher_is_better
-                                                 else r" $\downarrow$") for k in keys]
-    lines.append(" & ".join([first] + heads * len(groups)) + r" \\")
-    lines.append(r"\midrule")
+    tab = [r"\begin{tabular}{l" + "c" * (len(groups) * n) + "}", r"\toprule",
+           " & ".join([""] + [rf"\multicolumn{{{n}}}{{c}}{{{latex_escape(g)}}}"
+                              for g in groups]) + r" \\",
+           " ".join(rf"\cmidrule(lr){{{2 + i * n}-{1 + (i + 1) * n}}}" for i in range(len(groups))),
+           " & ".join([first] + [header(k, "latex") for k in keys] * len(groups)) + r" \\",
+           r"\midrule"]
+    body = []
     for row in cells.index:
-        vals = [cells.loc[row, (g, k)] for g in groups for k in keys]
-        lines.append(" & ".join([_latex_escape(str(row))] + [str(v) for v in vals]) + r" \\")
-    lines.append(r"\bottomrule")
-    lines.append(r"\end{tabular}")
-    notes = _legend(board, quote="")
-    lines.append(r"\par\smallskip\footnotesize " + r" \\ ".join(_latex_escape(n) for n in notes))
-    lines.append(r"\end{table}")
-    return "\n".join(lines) + "\n"
+        body.append([latex_escape(str(row))] + [str(cells.loc[row, (g, k)]) for g in groups
+                                                for k in keys])
+        tab.append(" & ".join(body[-1]) + r" \\")
+    tab += [r"\bottomrule", r"\end{tabular}"]
+    heads = [[first] + [header(k, "latex") for k in keys] * len(groups)]
+    legend = [latex_escape(t).replace("PLUSMINUS", r"$\pm$")
+              for t in _legend(board, usual, quote="", pm="PLUSMINUS")] if notes else []
+    return wrap_latex_table(tab, caption=latex_escape(caption or
+                                                      f"Results (protocol {board.protocol})."),
+                            label=label, width=width,
+                            est_width_pt=estimate_width_pt(heads + body), notes=legend)
 
 
 def render_csv(board: Leaderboard, by: str = "sequence") -> str:
-    """CSV with one header row ``group/metric``; empty where missing, ``L`` where lost."""
-    numbers, markers = to_frame(board, by)
-    out = pd.DataFrame("", index=numbers.index, columns=numbers.columns, dtype=object)
-    for col in numbers.columns:
-        for row in numbers.index:
-            v = numbers.loc[row, col]
-            out.loc[row, col] = repr(float(v)) if not math.isnan(v) else (
-                LOST if markers.loc[row, col] == LOST else "")
-    out.columns = [f"{g}/{k}" for g, k in numbers.columns]
-    out.index.name = "method" if by == "sequence" else "sequence"
-    return out.to_csv(lineterminator="\n")
+    """Long-format CSV: one row per run (see :func:`egs_bench.eval.results.results_frame`)."""
+    assert board.results is not None
+    df = results_frame(board.results, board.metrics)
+    return df.to_csv(index=False, lineterminator="\n")
+
+
+def summary_frame(board: Leaderboard) -> pd.DataFrame:
+    """One row per (method, settings, sequence) with run counts, a status and mean/std columns
+    in stored units (``ate_rmse_m_mean``, ``ate_rmse_m_std``, ...)."""
+    rows = []
+    for row in board.rows:
+        settings = row.label[len(row.method):].removesuffix(" [partial]").strip()
+        settings = settings[1:-1] if settings.startswith("(") else settings
+        for s in board.sequences:
+            cell = board.cells.get((row, s))
+            if cell is None:
+                continue
+            counts = {st: sum(r.status == st for r in cell.runs)
+                      for st in ("tracking_lost", "failed")}
+            status = "ok" if len(cell.evaluated) == len(cell.runs) else (
+                "tracking_lost" if cell.marker == LOST else (
+                    "failed" if not cell.evaluated else "mixed"))
+            if status == "ok" and not row.complete:
+                status = "incomplete"
+            rec = {"method": row.method, "settings": settings, "sequence": s,
+                   "complete": row.complete, "status": status, "n_runs": len(cell.runs),
+                   "n_evaluated": len(cell.evaluated), "n_tracking_lost": counts["tracking_lost"],
+                   "n_failed": len(cell.runs) - len(cell.evaluated) - counts["tracking_lost"]}
+            for k in board.metrics:
+                st = cell.stats.get(k)
+                col = METRICS[k].column
+                rec[f"{col}_mean"] = st.mean if st else math.nan
+                rec[f"{col}_std"] = st.std if st else math.nan
+            rows.append(rec)
+    return pd.DataFrame(rows)
+
+
+def render_csv_summary(board: Leaderboard, by: str = "sequence") -> str:
+    """CSV of :func:`summary_frame`."""
+    return summary_frame(board).to_csv(index=False, lineterminator="\n")
 
 
 def leaderboard(runs_root: str | Path, fmt: str = "md", by: str = "sequence",
                 protocol: str = DEFAULT_PROTOCOL, metrics: Seq[str] = DEFAULT_METRICS,
-                evaluate_missing: bool = True) -> str:
-    """Collect the runs under ``runs_root`` and render the table in ``fmt`` (md/latex/csv)."""
+                evaluate_missing: bool = True, caption: str | None = None,
+                label: str | None = None, width: str = "auto") -> str:
+    """Collect the runs under ``runs_root`` and render the table in ``fmt``.
+
+    Args:
+        fmt: ``md``, ``latex``, ``csv`` (one row per run) or ``csv-summary`` (one row per
+            method/settings/sequence).
+        caption, label, width: LaTeX options (see :func:`render_latex`); the default label is
+            ``tab:<runs_root folder name>``.
+    """
     if fmt not in FORMATS:
         raise ConfigError(f"unknown format {fmt!r}; choose one of {', '.join(FORMATS)}")
     if by not in LAYOUTS:
@@ -344,5 +339,10 @@ def leaderboard(runs_root: str | Path, fmt: str = "md", by: str = "sequence",
     if fmt == "md":
         return render_markdown(board, by)
     if fmt == "latex":
-        return render_latex(board, by, caption=f"Results (protocol {protocol}).")
-    return render_csv(board, by)
+        name = Path(runs_root).resolve().name
+        return render_latex(board, by, caption=caption,
+                            label=label if label is not None else f"tab:{slug(name)}",
+                            width=width)
+    if fmt == "csv":
+        return render_csv(board, by)
+    return render_csv_summary(board, by)

@@ -13,9 +13,32 @@ import numpy as np
 from matplotlib.collections import LineCollection
 from matplotlib.figure import Figure
 
-from egs_bench.errors import InputError
+from egs_bench.errors import ConfigError, InputError
 from egs_bench.eval.ate import AteResult
 from egs_bench.fileio import atomic_path
+
+FIGURE_FORMATS = ("png", "pdf", "svg")
+
+
+def save_figure(fig: Figure, path: Path) -> Path:
+    """Write ``fig`` atomically in the format of the path's suffix (png, pdf or svg).
+
+    Raises:
+        ConfigError: another suffix.
+        InputError: ``path`` is a folder.
+    """
+    fmt = path.suffix.lower().lstrip(".")
+    if fmt not in FIGURE_FORMATS:
+        raise ConfigError(f"{path}: figures are written as {', '.join(FIGURE_FORMATS)} "
+                          "(choose the file suffix)")
+    if path.is_dir():
+        raise InputError(path, "is a folder; expected a file name")
+    import matplotlib
+
+    # SVG text as text (searchable, editable in a paper's figure), not as glyph outlines
+    with atomic_path(path) as tmp, matplotlib.rc_context({"svg.fonttype": "none"}):
+        fig.savefig(tmp, format=fmt, dpi=150 if fmt == "png" else None, bbox_inches="tight")
+    return path
 
 
 def _save(fig: Figure, path: Path) -> Path:

@@ -164,4 +164,5 @@ def test_evaluate_partial_run_scores_processed_frames(tmp_path, eval_sequence) -
     assert m["rendering"]["per_frame"]["frame"] == [0, 5]
     assert m["ate"]["n_matched"] == 7
     assert "covers 7 of the sequence's 12 frames" in m["notes"][0]
-    assert "egs on tiny: covers only 7 of 12 frames" in leaderboard(tmp_path / "runs")
+    assert "egs [partial] on tiny: covers 7 of 12 frames; never ranked against complete " \
+        "runs" in leaderboard(tmp_path / "runs")

@@ -1,0 +1,355 @@
+"""Per-run results of a folder of run folders: one robust record per run, never an abort.
+
+Leaderboards, paper tables, regression checks and sweep summaries all start from
+:func:`collect_results`. Each run folder becomes one :class:`RunResult` with its identity
+(method, sequence, seed, settings), a status and its metric values; a folder that cannot be read
+(binary or malformed ``run.yaml`` / ``status.json`` / ``trajectory.txt``, a wrongly typed
+``metrics.json``) becomes a result with status ``broken`` and a reason naming the file, so one
+bad folder never hides the others.
+
+Statuses (``RunResult.status``):
+
+=================  =====================================================================
+``ok``             finished, evaluated, covers every frame of its sequence
+``incomplete``     finished and evaluated, but covers fewer frames than the sequence
+``tracking_lost``  the method reported a tracking loss (tables show ``L``)
+``failed``         the method failed (crash, time limit, interruption)
+``running``        not finished (still running, or killed without a final status)
+``not_evaluated``  finished, but no metrics under the requested protocol and evaluation was off
+``broken``         a file of the run folder is unreadable or malformed
+=================  =====================================================================
+
+Metric values are stored in the units of ``metrics.json`` (ATE in metres, PSNR in dB).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from egs_bench.errors import EgsBenchError, InputError
+from egs_bench.eval.protocols import DEFAULT_PROTOCOL
+from egs_bench.runs.folder import (
+    CONFIG_FILE,
+    KEYFRAMES_FILE,
+    METRICS_FILE,
+    RUN_FILE,
+    STATUS_FILE,
+    TIMING_FILE,
+    TRAJECTORY_FILE,
+    RunFolder,
+    find_runs,
+)
+
+STATUSES = ("ok", "incomplete", "tracking_lost", "failed", "running", "not_evaluated", "broken")
+#: Statuses whose metric values are meaningful (``incomplete`` only over the frames it covers).
+EVALUATED = ("ok", "incomplete")
+#: Written by ``egs-bench sweep`` next to the method's files (see :mod:`egs_bench.experiments`).
+SWEEP_RECORD_FILE = "sweep.json"
+#: Configuration keys that do not define the settings of a run: the seed varies inside a
+#: group, ``frames`` follows the sequence length (coverage is tracked separately), and the
+#: method is already the row.
+NON_SETTINGS_KEYS = ("seed", "frames", "method")
+_TEXT_FILES = (RUN_FILE, STATUS_FILE, CONFIG_FILE, TRAJECTORY_FILE, KEYFRAMES_FILE, TIMING_FILE,
+               METRICS_FILE, SWEEP_RECORD_FILE)
+
+
+@dataclass(frozen=True)
+class MetricSpec:
+    """A metric of the result tables.
+
+    Attributes:
+        key: short name (``ate``, ``psnr``, ...).
+        column: CSV column name with its unit (the value as stored, e.g. ``ate_rmse_m``).
+        label: table header with the displayed unit.
+        scale: factor from the stored value to the displayed one (ATE: metres -> cm).
+        higher_is_better: direction of "better".
+        decimals: displayed decimals (ranks use the displayed, rounded values).
+    """
+
+    key: str
+    column: str
+    label: str
+    scale: float
+    higher_is_better: bool
+    decimals: int
+
+
+METRICS: dict[str, MetricSpec] = {
+    "ate": MetricSpec("ate", "ate_rmse_m", "ATE [cm]", 100.0, False, 2),
+    "psnr": MetricSpec("psnr", "psnr_db", "PSNR [dB]", 1.0, True, 2),
+    "ssim": MetricSpec("ssim", "ssim", "SSIM", 1.0, True, 3),
+    "lpips": MetricSpec("lpips", "lpips", "LPIPS", 1.0, False, 3),
+    "fps": MetricSpec("fps", "fps", "FPS", 1.0, True, 2),
+    "render_fps": MetricSpec("render_fps", "render_fps", "Render FPS", 1.0, True, 1),
+}
+DEFAULT_METRICS = ("ate", "psnr", "ssim", "lpips")
+
+
+@dataclass(frozen=True)
+class RunResult:
+    """One run folder's identity, status and metric values.
+
+    Attributes:
+        path: the run folder.
+        rel: its path relative to the collected root (for messages).
+        method, sequence: names from ``run.yaml`` (``None`` when ``run.yaml`` is unreadable).
+        seed: the run's seed from ``config.yaml`` or the sweep record, if known.
+        settings: the run's flattened configuration without the seed, frame count and method
+            (``{"preset": "cpu", "slam.lambda_d": 0.1, ...}``); runs with equal settings are
+            repeats of one experiment.
+        settings_key: 10-hex-digit hash of ``settings``.
+        settings_name: a name given to the settings by a sweep (``None`` otherwise).
+        status: one of :data:`STATUSES`.
+        reason: why the run is not ``ok`` (one line, names the file when a file is at fault).
+        values: metric key -> value in the stored unit (ATE metres, PSNR dB, ...).
+        frames_processed, frames_in_sequence: coverage from evaluation (``None`` if unknown).
+    """
+
+    path: Path
+    rel: str
+    method: str | None
+    sequence: str | None
+    seed: int | None = None
+    settings: dict[str, Any] = field(default_factory=dict)
+    settings_key: str = ""
+    settings_name: str | None = None
+    status: str = "broken"
+    reason: str | None = None
+    values: dict[str, float] = field(default_factory=dict)
+    frames_processed: int | None = None
+    frames_in_sequence: int | None = None
+
+    @property
+    def complete(self) -> bool:
+        """Covers every frame of its sequence (or the coverage is unknown, e.g. imports)."""
+        if self.frames_processed is None or self.frames_in_sequence is None:
+            return True
+        return self.frames_processed >= self.frames_in_sequence
+
+
+@dataclass
+class ResultSet:
+    """All runs found under ``root`` and the protocol their metrics were taken under."""
+
+    root: Path
+    runs: list[RunResult]
+    protocol: str = DEFAULT_PROTOCOL
+
+
+def flatten(data: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
+    """``{"a": {"b": 1}}`` -> ``{"a.b": 1}`` (lists are kept as values)."""
+    out: dict[str, Any] = {}
+    for key, value in data.items():
+        name = f"{prefix}{key}"
+        if isinstance(value, Mapping):
+            out.update(flatten(value, name + "."))
+        else:
+            out[name] = value
+    return out
+
+
+def settings_of(config: Mapping[str, Any]) -> dict[str, Any]:
+    """The settings that define an experiment: the flattened config without the seed etc."""
+    return {k: v for k, v in sorted(flatten(config).items())
+            if k.split(".", 1)[0] not in NON_SETTINGS_KEYS}
+
+
+def settings_hash(settings: Mapping[str, Any]) -> str:
+    """Short stable hash of a settings mapping (canonical JSON, sha256, 10 hex digits)."""
+    text = json.dumps(settings, sort_keys=True, default=str, separators=(",", ":"))
+    return hashlib.sha256(text.encode()).hexdigest()[:10]
+
+
+def _check_text_files(run_dir: Path, names: tuple[str, ...]) -> None:
+    """Raise :class:`InputError` naming the first of ``names`` that is not UTF-8 text."""
+    for name in names:
+        path = run_dir / name
+        if path.is_file():
+            try:
+                path.read_bytes().decode("utf-8")
+            except UnicodeDecodeError:
+                raise InputError(path, "not a text file (binary content)") from None
+
+
+def _number(section: Any, key: str, where: Path) -> float | None:
+    if section is None:
+        return None
+    if not isinstance(section, Mapping):
+        raise InputError(where, f"expected a mapping with {key!r}, found {type(section).__name__}")
+    value = section.get(key)
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise InputError(where, f"{key!r} must be a number, found {value!r}")
+    return float(value) if math.isfinite(value) else None
+
+
+def metric_values(metrics: Mapping[str, Any], where: Path) -> dict[str, float]:
+    """Metric key -> value (stored unit) from a ``metrics.json`` mapping, type-checked.
+
+    Raises:
+        InputError: a section or value has the wrong type (names ``where``).
+    """
+    out = {
+        "ate": _number(metrics.get("ate"), "rmse_m", where),
+        "psnr": _number(metrics.get("rendering"), "psnr_db", where),
+        "ssim": _number(metrics.get("rendering"), "ssim", where),
+        "lpips": _number(metrics.get("rendering"), "lpips", where),
+        "fps": _number(metrics.get("speed"), "fps", where),
+        "render_fps": _number(metrics.get("speed"), "render_fps", where),
+    }
+    return {k: v for k, v in out.items() if v is not None}
+
+
+def _coverage(metrics: Mapping[str, Any], where: Path) -> tuple[int | None, int | None]:
+    cov = metrics.get("coverage")
+    if cov is None:
+        return None, None
+    if not isinstance(cov, Mapping):
+        raise InputError(where, "'coverage' must be a mapping")
+    done, total = cov.get("frames_processed"), cov.get("frames_in_sequence")
+    if not all(isinstance(v, int) and not isinstance(v, bool) for v in (done, total)):
+        raise InputError(where, "'coverage' needs integer frames_processed / frames_in_sequence")
+    return done, total
+
+
+def _read_sweep_record(run_dir: Path) -> dict[str, Any]:
+    path = run_dir / SWEEP_RECORD_FILE
+    if not path.is_file():
+        return {}
+    try:
+        data = json.loads(path.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError):
+        return {}
+    return data if isinstance(data, dict) else {}
+
+
+def _load_metrics(run: RunFolder, protocol: str, evaluate_missing: bool) -> dict[str, Any] | None:
+    """The run's metrics under ``protocol`` (evaluated if needed), ``None`` if not available."""
+    from egs_bench.eval.evaluate import evaluate_run, read_metrics
+
+    data = None
+    if run.metrics_path.is_file():
+        data = read_metrics(run.path)
+        proto = data.get("protocol")
+        if not isinstance(proto, Mapping):
+            raise InputError(run.metrics_path, "'protocol' must be a mapping with a 'name'")
+        if proto.get("name") != protocol:
+            data = None
+    if data is None and evaluate_missing:
+        # another protocol's metrics.json is left alone; a missing one is written
+        data = evaluate_run(run.path, protocol, write=not run.metrics_path.is_file())
+    return data
+
+
+def read_run_result(path: Path, root: Path, protocol: str = DEFAULT_PROTOCOL,
+                    evaluate_missing: bool = True) -> RunResult:
+    """Read one run folder into a :class:`RunResult`; never raises for a bad folder."""
+    rel = str(path.relative_to(root)) if path != root else path.name
+    base: dict[str, Any] = {"path": path, "rel": rel, "method": None, "sequence": None}
+    try:
+        _check_text_files(path, (RUN_FILE,))
+        run = RunFolder.open(path)
+    except (EgsBenchError, OSError, ValueError) as exc:
+        return RunResult(**base, status="broken", reason=str(exc))
+    base.update(method=run.method, sequence=run.sequence_name)
+    try:
+        _check_text_files(path, _TEXT_FILES)
+    except EgsBenchError as exc:
+        return RunResult(**base, status="broken", reason=str(exc))
+    record = _read_sweep_record(path)
+    try:
+        config = run.read_config() if (path / CONFIG_FILE).is_file() else {}
+    except (EgsBenchError, OSError, ValueError) as exc:
+        return RunResult(**base, status="broken", reason=str(exc))
+    seed = config.get("seed", record.get("seed"))
+    settings = settings_of(config)
+    base.update(seed=seed if isinstance(seed, int) and not isinstance(seed, bool) else None,
+                settings=settings, settings_key=settings_hash(settings),
+                settings_name=record.get("settings_name") if isinstance(
+                    record.get("settings_name"), str) else None)
+    try:
+        status = run.read_status()
+    except (EgsBenchError, OSError, ValueError) as exc:
+        return RunResult(**base, status="broken", reason=str(exc))
+    if status.state == "failed":
+        return RunResult(**base, status="tracking_lost" if status.tracking_lost else "failed",
+                         reason=status.reason or "no reason given")
+    if status.state != "done":
+        return RunResult(**base, status="running", reason=f"status is {status.state!r}")
+    try:
+        data = _load_metrics(run, protocol, evaluate_missing)
+        if data is None:
+            return RunResult(**base, status="not_evaluated",
+                             reason=f"not evaluated under protocol {protocol!r}")
+        values = metric_values(data, run.metrics_path)
+        done, total = _coverage(data, run.metrics_path)
+    except EgsBenchError as exc:
+        return RunResult(**base, status="broken", reason=str(exc))
+    except Exception as exc:  # noqa: BLE001 (a bad folder must become a footnote, not an abort)
+        return RunResult(**base, status="broken",
+                         reason=f"{path}: evaluation failed ({type(exc).__name__}: {exc})")
+    result = RunResult(**base, status="ok", values=values, frames_processed=done,
+                       frames_in_sequence=total)
+    if not result.complete:
+        return dataclasses.replace(result, status="incomplete",
+                                   reason=f"covers {done} of {total} frames")
+    return result
+
+
+def collect_results(runs_root: str | Path, protocol: str = DEFAULT_PROTOCOL,
+                    evaluate_missing: bool = True) -> ResultSet:
+    """Read every run folder under ``runs_root`` (recursively).
+
+    Runs without ``metrics.json`` for ``protocol`` are evaluated when ``evaluate_missing`` (a
+    missing ``metrics.json`` is written; another protocol's file is left alone).
+
+    Raises:
+        InputError: ``runs_root`` is missing or holds no run folder.
+    """
+    root = Path(runs_root)
+    paths = find_runs(root)
+    if not paths:
+        raise InputError(root, "holds no run folders (no run.yaml found)")
+    return ResultSet(root, [read_run_result(p, root, protocol, evaluate_missing) for p in paths],
+                     protocol)
+
+
+def results_frame(results: ResultSet, metrics: tuple[str, ...] | list[str] = tuple(METRICS)):
+    """Long-format table: one row per run, metric columns in stored units, a status column.
+
+    Columns: ``method, settings, sequence, seed, status, frames_processed, frames_in_sequence``,
+    one column per metric named with its unit (``ate_rmse_m``, ``psnr_db``, ``ssim``, ``lpips``,
+    ``fps``), ``reason`` and ``run``. Metric columns are float (NaN where there is no value), so
+    a tracking loss never turns a column into strings.
+    """
+    import pandas as pd
+
+    from egs_bench.eval.grouping import row_labels
+
+    labels = row_labels(results.runs)
+    rows = []
+    for r in results.runs:
+        row: dict[str, object] = {
+            "method": r.method, "settings": labels.get(r.path, ""), "sequence": r.sequence,
+            "seed": r.seed, "status": r.status, "frames_processed": r.frames_processed,
+            "frames_in_sequence": r.frames_in_sequence}
+        for key in metrics:
+            v = r.values.get(key) if r.status in EVALUATED else None
+            row[METRICS[key].column] = math.nan if v is None else v
+        row["reason"] = r.reason or ""
+        row["run"] = r.rel
+        rows.append(row)
+    df = pd.DataFrame(rows)
+    for col in ("seed", "frames_processed", "frames_in_sequence"):
+        df[col] = df[col].astype("Int64")
+    for key in metrics:
+        df[METRICS[key].column] = df[METRICS[key].column].astype(float)
+    return df

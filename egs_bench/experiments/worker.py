@@ -1,0 +1,276 @@
+"""Run one sweep run in this process: decide, run the method, evaluate, record.
+
+``python -m egs_bench.experiments.worker SPEC.json [--force] [--retry-failed]`` is what every
+backend starts, one process per run. Under an exclusive lock on the run (so a run is never
+executed twice at once, even by two sweeps or a resubmitted cluster job) the worker
+
+1. decides from the run folder's ``sweep.json`` record and ``status.json`` (:func:`decide`):
+   a finished run with the same configuration hash is skipped; a run with another hash is
+   ``stale`` and left alone unless forced; a folder the sweep did not create is a ``conflict``
+   and never touched; an interrupted or killed run (status still ``running``) is run again;
+   a failed run is kept unless ``--retry-failed``;
+2. moves a run folder it is going to replace (always one this sweep created) out of the way;
+3. writes the ``sweep.json`` record, runs the method (SIGTERM, e.g. a cluster time limit, is
+   handled like Ctrl-C: the run is marked failed and the record ``interrupted``), evaluates a
+   finished run with the sweep's protocol, and writes the final record with the state, the
+   reason of a failure and the wall time.
+
+The worker's output (progress, numba/torch messages) goes to ``<run>/worker.log``. Thread
+counts come from the environment the backend sets (``OMP_NUM_THREADS``, ``NUMBA_NUM_THREADS``,
+...), which torch and numba read when they start.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import datetime as _dt
+import fcntl
+import json
+import os
+import shutil
+import signal
+import socket
+import sys
+import time
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from egs_bench.eval.results import SWEEP_RECORD_FILE
+from egs_bench.experiments.spec import STATE_DIR, RunSpec
+from egs_bench.fileio import write_text_atomic
+
+WORKER_LOG = "worker.log"
+# exit codes of the worker process
+EXIT_DONE, EXIT_FAILED, EXIT_BUSY, EXIT_NOT_RUN, EXIT_INTERRUPTED = 0, 10, 11, 12, 13
+
+# decisions
+RUN, SKIP, STALE, CONFLICT, KEEP_FAILED = "run", "skip", "stale", "conflict", "keep-failed"
+
+
+class Interrupted(BaseException):
+    """SIGTERM received (cluster time limit, ``kill``): unwinds like Ctrl-C."""
+
+
+def now_utc() -> str:
+    return _dt.datetime.now(_dt.UTC).strftime("%Y-%m-%dT%H:%M:%SZ")
+
+
+def read_record(run_dir: str | Path) -> dict[str, Any] | None:
+    """The run folder's ``sweep.json`` (``None`` when absent or unreadable)."""
+    path = Path(run_dir) / SWEEP_RECORD_FILE
+    if not path.is_file():
+        return None
+    try:
+        data = json.loads(path.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError, OSError):
+        return None
+    return data if isinstance(data, dict) else None
+
+
+def write_record(run_dir: str | Path, record: dict[str, Any]) -> None:
+    write_text_atomic(Path(run_dir) / SWEEP_RECORD_FILE, json.dumps(record, indent=1) + "\n")
+
+
+def run_state(run_dir: str | Path) -> str | None:
+    """``status.json``'s state (``done``/``failed``/``running``/...), ``tracking_lost`` for a
+    tracking loss, ``None`` when there is no readable status.
+
+    Unlike :meth:`RunFolder.read_status` this never raises: for deciding whether to rerun, an
+    unreadable status simply means "not finished"."""
+    path = Path(run_dir) / "status.json"
+    try:
+        data = json.loads(path.read_text())
+    except (OSError, json.JSONDecodeError, UnicodeDecodeError):
+        return None
+    if not isinstance(data, dict):
+        return None
+    if data.get("state") == "failed" and data.get("tracking_lost"):
+        return "tracking_lost"
+    return data.get("state") if isinstance(data.get("state"), str) else None
+
+
+@dataclass(frozen=True)
+class Decision:
+    """What to do with a run, and why (one line for the summary)."""
+
+    action: str
+    why: str = ""
+
+
+def decide(spec: RunSpec, force: bool = False, retry_failed: bool = False) -> Decision:
+    """Whether ``spec`` must run, from its folder (see the module docstring)."""
+    run_dir = Path(spec.run_dir)
+    if not run_dir.exists():
+        return Decision(RUN, "new")
+    record = read_record(run_dir)
+    if record is None or record.get("run_id") != spec.run_id:
+        if run_dir.is_dir() and not any(run_dir.iterdir()):
+            return Decision(RUN, "new")
+        return Decision(CONFLICT, f"{run_dir} exists and was not created by this sweep; "
+                                  "left untouched (move it away or choose another --out)")
+    if record.get("config_hash") != spec.config_hash:
+        if force:
+            return Decision(RUN, "configuration changed; --force")
+        return Decision(STALE, "finished with another configuration (hash "
+                               f"{record.get('config_hash')} != {spec.config_hash}); kept: "
+                               "rerun with --force or use another --out")
+    state = run_state(run_dir)
+    # a record still "running" means the worker died (the caller holds or tested the lock),
+    # possibly after the method finished but before its evaluation: run it again
+    if record.get("state") in ("interrupted", "running") or state in (None, "running"):
+        return Decision(RUN, "interrupted before it finished")
+    if state == "done":
+        return Decision(RUN, "--force") if force else Decision(SKIP, "finished earlier")
+    if force or retry_failed:
+        return Decision(RUN, "retrying a failed run")
+    return Decision(KEEP_FAILED, "failed earlier (rerun with --retry-failed)")
+
+
+@contextlib.contextmanager
+def run_lock(spec: RunSpec) -> Iterator[bool]:
+    """Exclusive, non-blocking lock of one run (fcntl; released when the process dies).
+
+    Yields True when this process holds the lock, False when another process does.
+    """
+    lock_dir = Path(spec.sweep_dir) / STATE_DIR / "locks"
+    lock_dir.mkdir(parents=True, exist_ok=True)
+    with open(lock_dir / f"{spec.key}.lock", "a+") as f:
+        try:
+            fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            yield False
+            return
+        try:
+            yield True
+        finally:
+            fcntl.flock(f, fcntl.LOCK_UN)
+
+
+def lock_is_held(spec: RunSpec) -> bool:
+    """Whether some process currently holds the run's lock."""
+    with run_lock(spec) as mine:
+        return not mine
+
+
+def clear_run_folder(spec: RunSpec) -> None:
+    """Move this sweep's old run folder out of the way and delete it (only called for folders
+    whose ``sweep.json`` names this run)."""
+    run_dir = Path(spec.run_dir)
+    if not run_dir.exists():
+        return
+    trash = Path(spec.sweep_dir) / STATE_DIR / "trash"
+    trash.mkdir(parents=True, exist_ok=True)
+    target = trash / f"{spec.key}.{time.time_ns()}"
+    os.replace(run_dir, target)
+    shutil.rmtree(target, ignore_errors=True)
+
+
+def _redirect_output(path: Path) -> None:
+    """Send this process's stdout/stderr (file descriptors too) to ``path`` (append)."""
+    sys.stdout.flush()
+    sys.stderr.flush()
+    fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_APPEND, 0o644)
+    os.dup2(fd, 1)
+    os.dup2(fd, 2)
+    os.close(fd)
+
+
+def _on_sigterm(signum: int, frame: Any) -> None:
+    raise Interrupted(f"signal {signal.Signals(signum).name}")
+
+
+def execute(spec: RunSpec, redirect: bool = True) -> dict[str, Any]:
+    """Run the method of ``spec`` into its (prepared) run folder, evaluate it, and return the
+    final record (also written to ``sweep.json``)."""
+    from egs_bench.datasets.sequence import Sequence
+    from egs_bench.runs.registry import get_method
+
+    run_dir = Path(spec.run_dir)
+    run_dir.mkdir(parents=True, exist_ok=True)
+    record: dict[str, Any] = {
+        "run_id": spec.run_id, "config_hash": spec.config_hash, "seed": spec.seed,
+        "settings_name": spec.settings_name, "identity": spec.identity, "state": "running",
+        "host": socket.gethostname(), "pid": os.getpid(), "started_utc": now_utc(),
+        "threads": os.environ.get("EGS_BENCH_THREADS"),
+        "cuda_visible_devices": os.environ.get("CUDA_VISIBLE_DEVICES"),
+    }
+    write_record(run_dir, record)
+    if redirect:
+        _redirect_output(run_dir / WORKER_LOG)
+    print(f"{now_utc()} sweep run {spec.run_id} (hash {spec.config_hash}) pid {os.getpid()}",
+          flush=True)
+    t0 = time.perf_counter()
+    previous = signal.signal(signal.SIGTERM, _on_sigterm)
+    try:
+        method = get_method(spec.method)
+        sequence = Sequence.open(spec.sequence)
+        extra = {"options": spec.options} if spec.options else {}
+        method.run(sequence, run_dir, preset=spec.preset, device=spec.device, seed=spec.seed,
+                   max_frames=spec.max_frames, progress=False, **extra)
+        state = run_state(run_dir)
+        record["state"] = state if state in ("done", "failed", "tracking_lost") else "failed"
+        if record["state"] != "done":
+            record["reason"] = _status_reason(run_dir) or "the method did not mark the run done"
+    except (KeyboardInterrupt, Interrupted) as exc:
+        record.update(state="interrupted", reason=f"interrupted ({exc or 'Ctrl-C'})")
+    except Exception as exc:  # noqa: BLE001 (any failure of one run is recorded, not raised)
+        record.update(state=run_state(run_dir) if run_state(run_dir) == "tracking_lost"
+                      else "failed", reason=f"{type(exc).__name__}: {exc}".splitlines()[0])
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+    record["run_wall_s"] = round(time.perf_counter() - t0, 3)
+    if record["state"] == "done":
+        t1 = time.perf_counter()
+        try:
+            from egs_bench.eval.evaluate import evaluate_run
+
+            evaluate_run(run_dir, spec.protocol, write=True)
+            record["evaluated"] = spec.protocol
+        except Exception as exc:  # noqa: BLE001 (the run stays done; the table says why)
+            record["evaluation_error"] = f"{type(exc).__name__}: {exc}".splitlines()[0]
+        record["eval_wall_s"] = round(time.perf_counter() - t1, 3)
+    record["finished_utc"] = now_utc()
+    write_record(run_dir, record)
+    print(f"{now_utc()} finished: {record['state']} {record.get('reason', '')}", flush=True)
+    return record
+
+
+def _status_reason(run_dir: Path) -> str | None:
+    try:
+        data = json.loads((run_dir / "status.json").read_text())
+        return data.get("reason") if isinstance(data, dict) else None
+    except (OSError, json.JSONDecodeError, UnicodeDecodeError):
+        return None
+
+
+def run_one(spec: RunSpec, force: bool = False, retry_failed: bool = False,
+            redirect: bool = True) -> int:
+    """Decide and (if needed) execute one run under its lock; returns a worker exit code."""
+    with run_lock(spec) as mine:
+        if not mine:
+            print(f"{spec.run_id}: running in another process; not started", file=sys.stderr)
+            return EXIT_BUSY
+        decision = decide(spec, force, retry_failed)
+        if decision.action != RUN:
+            print(f"{spec.run_id}: {decision.action} ({decision.why})", file=sys.stderr)
+            return EXIT_NOT_RUN
+        clear_run_folder(spec)
+        record = execute(spec, redirect=redirect)
+    return {"done": EXIT_DONE, "interrupted": EXIT_INTERRUPTED}.get(record["state"], EXIT_FAILED)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description="Run one sweep run (started by egs-bench sweep).")
+    ap.add_argument("spec", type=Path, help="run spec JSON written by the sweep launcher")
+    ap.add_argument("--force", action="store_true")
+    ap.add_argument("--retry-failed", action="store_true")
+    args = ap.parse_args(argv)
+    spec = RunSpec.from_dict(json.loads(args.spec.read_text()))
+    return run_one(spec, args.force, args.retry_failed)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

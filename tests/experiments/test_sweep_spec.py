@@ -1,0 +1,168 @@
+"""Sweep files: validation with one-line errors, expansion, stable names, hashes, shards, slots."""
+
+import pytest
+from sweep_fixtures import make_sequence
+
+from egs_bench.errors import ConfigError, InputError
+from egs_bench.experiments.backends import plan_slots
+from egs_bench.experiments.spec import (
+    LocalOptions,
+    expand,
+    in_shard,
+    load_sweep,
+    parse_shard,
+    parse_sweep,
+)
+
+
+@pytest.fixture(scope="module")
+def seqs(tmp_path_factory):
+    root = tmp_path_factory.mktemp("seqs")
+    return {"a": make_sequence(root, "sa", 6, 0), "b": make_sequence(root, "sb", 6, 1)}
+
+
+@pytest.mark.parametrize(("data", "message"), [
+    ({"sequences": ["a"]}, "missing 'methods'"),
+    ({"methods": ["egs"], "sequences": ["a"], "seed": [1]}, "unknown key(s): seed"),
+    ({"methods": ["egs"], "sequences": ["a"], "seeds": ["x"]}, "'seeds' must hold integers"),
+    ({"methods": ["egs"], "sequences": []}, "'sequences' is empty"),
+    ({"methods": ["egs", "egs"], "sequences": ["a"]}, "'methods' lists a value twice"),
+    ({"methods": ["egs"], "sequences": ["a"], "device": "tpu"}, "must be cpu or cuda"),
+    ({"methods": ["egs"], "sequences": ["a"], "max_frames": 0}, "'max_frames' must be a"),
+    ({"methods": ["egs"], "sequences": ["a"], "local": {"jobz": 2}}, "unknown key(s) in 'local'"),
+    ({"methods": ["egs"], "sequences": ["a"], "slurm": {"timeout_min": -1}},
+     "'slurm.timeout_min' must be a positive number"),
+    ({"methods": ["egs"], "sequences": ["a"], "protocol": "tum"}, "unknown protocol 'tum'"),
+    (["egs"], "must be a YAML mapping"),
+])
+def test_sweep_file_errors_name_the_file(tmp_path, data, message) -> None:
+    with pytest.raises(InputError) as err:
+        parse_sweep(data, tmp_path / "s.yaml")
+    assert message in str(err.value) and str(tmp_path / "s.yaml") in str(err.value)
+
+
+def test_load_sweep_file_errors(tmp_path) -> None:
+    with pytest.raises(InputError, match="sweep file not found"):
+        load_sweep(tmp_path / "nope.yaml")
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("methods: [egs\n")
+    with pytest.raises(InputError, match="not valid YAML"):
+        load_sweep(bad)
+    (tmp_path / "ok.yaml").write_text("methods: [egs]\nsequences: [x]\n")
+    spec = load_sweep(tmp_path / "ok.yaml")
+    assert spec.seeds == (0,) and spec.presets == ("paper",) and str(spec.out) == "sweeps/ok"
+
+
+def test_expand_names_hashes_and_settings(tmp_path, seqs) -> None:
+    spec = parse_sweep({"methods": ["egs", "monogs"], "sequences": ["a", "b"], "seeds": [0, 1],
+                        "preset": "cpu", "max_frames": 4,
+                        "settings": {"base": {}, "low-d": {"lambda_d": 0.05}}}, "s.yaml")
+    runs = expand(spec, seqs, tmp_path / "out")
+    assert len(runs) == 2 * 2 * 2 * 2
+    ids = [r.run_id for r in runs]
+    assert ids[:4] == ["sa/egs__base/seed0", "sa/egs__base/seed1", "sa/egs__low-d/seed0",
+                       "sa/egs__low-d/seed1"]
+    assert runs[0].run_dir == str((tmp_path / "out" / "runs" / ids[0]).resolve())
+    low = next(r for r in runs if r.run_id == "sa/egs__low-d/seed0")
+    assert low.options == {"lambda_d": 0.05}
+    assert low.identity["resolved"]["loss"]["lambda_d"] == 0.05
+    # stable: the same file expands to the same names and hashes
+    assert [(r.run_id, r.config_hash) for r in expand(spec, seqs, tmp_path / "out")] == \
+        [(r.run_id, r.config_hash) for r in runs]
+    # every ingredient of the result changes the hash, never the folder name
+    changed = parse_sweep({"methods": ["egs", "monogs"], "sequences": ["a", "b"],
+                           "seeds": [0, 1], "preset": "cpu", "max_frames": 5,
+                           "settings": {"base": {}, "low-d": {"lambda_d": 0.05}}}, "s.yaml")
+    again = expand(changed, seqs, tmp_path / "out")
+    assert [r.run_id for r in again] == ids
+    assert all(a.config_hash != b.config_hash for a, b in zip(runs, again, strict=True))
+    forced = expand(spec, seqs, tmp_path / "out", extra_options={"tracking_iters": 3})
+    assert forced[0].config_hash != runs[0].config_hash
+    assert forced[0].identity["resolved"]["budget"]["tracking_iters"] == 3
+    # several presets / devices enter the folder name
+    multi = parse_sweep({"methods": ["egs"], "sequences": ["a"], "preset": ["cpu", "paper"]},
+                        "s.yaml")
+    assert [r.run_id for r in expand(multi, seqs, tmp_path)] == ["sa/egs__cpu/seed0",
+                                                                 "sa/egs__paper/seed0"]
+
+
+def test_expand_rejects_bad_overrides_and_methods(tmp_path, seqs) -> None:
+    bad = parse_sweep({"methods": ["egs"], "sequences": ["a"], "set": {"lambda_q": 1}},
+                      tmp_path / "s.yaml")
+    with pytest.raises(InputError, match="unknown SLAM option 'lambda_q'"):
+        expand(bad, seqs, tmp_path)
+    typed = parse_sweep({"methods": ["egs"], "sequences": ["a"], "set": {"lambda_d": "x"}},
+                        tmp_path / "s.yaml")
+    with pytest.raises(InputError, match="lambda_d needs a finite number"):
+        expand(typed, seqs, tmp_path)
+    unknown = parse_sweep({"methods": ["nosuch"], "sequences": ["a"]}, tmp_path / "s.yaml")
+    with pytest.raises(InputError, match="unknown method 'nosuch'"):
+        expand(unknown, seqs, tmp_path)
+    plugin = parse_sweep({"methods": ["sweep_fixtures:GOOD"], "sequences": ["a"],
+                          "set": {"lambda_d": 0.1}}, tmp_path / "s.yaml")
+    with pytest.raises(InputError, match="is a user method"):
+        expand(plugin, seqs, tmp_path)
+
+
+def test_shards_partition_the_runs(tmp_path, seqs) -> None:
+    spec = parse_sweep({"methods": ["egs", "monogs", "egs-no-crf"], "sequences": ["a", "b"],
+                        "seeds": [0, 1, 2]}, "s.yaml")
+    runs = expand(spec, seqs, tmp_path)
+    parts = [[r.run_id for r in runs if in_shard(r, (i, 3))] for i in range(3)]
+    assert sorted(sum(parts, [])) == sorted(r.run_id for r in runs)  # disjoint and complete
+    assert all(parts)
+    assert parse_shard("1/3") == (1, 3) and parse_shard(None) is None
+    for text in ("3/3", "1", "a/b", "0/0"):
+        with pytest.raises(ConfigError, match="--shard must be i/N"):
+            parse_shard(text)
+
+
+def test_plan_slots_cpu_budget_and_gpus(tmp_path, seqs) -> None:
+    spec = parse_sweep({"methods": ["egs"], "sequences": ["a", "b"], "seeds": [0, 1, 2]},
+                       "s.yaml")
+    runs = expand(spec, seqs, tmp_path)
+    slots = plan_slots(runs, LocalOptions(cpu_budget=8))
+    assert len(slots) == 6 and slots[0].env["OMP_NUM_THREADS"] == "1"  # capped by the runs
+    slots = plan_slots(runs, LocalOptions(cpu_budget=8), jobs=2)
+    assert len(slots) == 2 and {s.env["NUMBA_NUM_THREADS"] for s in slots} == {"4"}
+    slots = plan_slots(runs, LocalOptions(cpu_budget=8, threads_per_job=4))
+    assert len(slots) == 2 and slots[1].env["EGS_BENCH_THREADS"] == "4"
+    cuda = expand(parse_sweep({"methods": ["egs"], "sequences": ["a"], "seeds": [0, 1, 2],
+                               "device": "cuda"}, "s.yaml"), seqs, tmp_path)
+    slots = plan_slots(cuda, LocalOptions(cpu_budget=16), gpus=["2", "5"])
+    assert [s.env["CUDA_VISIBLE_DEVICES"] for s in slots] == ["2", "5"]
+    assert slots[0].env["OMP_NUM_THREADS"] == "8"
+    with pytest.raises(ConfigError, match="no CUDA GPU is visible"):
+        plan_slots(cuda, LocalOptions(), gpus=[])
+
+
+def test_decide_from_the_run_folder(tmp_path, seqs) -> None:
+    import json
+
+    from egs_bench.experiments.worker import CONFLICT, KEEP_FAILED, RUN, SKIP, STALE, decide
+
+    spec = parse_sweep({"methods": ["sweep_fixtures:GOOD"], "sequences": ["a"]}, "s.yaml")
+    run = expand(spec, seqs, tmp_path)[0]
+    run_dir = tmp_path / "runs" / run.run_id
+
+    def state(record: dict | None, status: dict | None) -> str:
+        run_dir.mkdir(parents=True, exist_ok=True)
+        for name, data in (("sweep.json", record), ("status.json", status)):
+            (run_dir / name).unlink(missing_ok=True)
+            if data is not None:
+                (run_dir / name).write_text(json.dumps(data))
+        return decide(run).action
+
+    ours = {"run_id": run.run_id, "config_hash": run.config_hash}
+    assert decide(run).action == RUN  # no folder yet
+    assert state(None, {"state": "done"}) == CONFLICT  # a folder the sweep did not make
+    assert state({**ours, "state": "done"}, {"state": "done"}) == SKIP
+    assert state({**ours, "state": "done", "config_hash": "x"}, {"state": "done"}) == STALE
+    # killed after the method finished, before its evaluation: the record still says running
+    assert state({**ours, "state": "running"}, {"state": "done"}) == RUN
+    assert state({**ours, "state": "running"}, None) == RUN
+    assert state({**ours, "state": "interrupted"}, {"state": "failed"}) == RUN
+    assert state({**ours, "state": "failed"}, {"state": "failed"}) == KEEP_FAILED
+    assert decide(run, retry_failed=True).action == RUN
+    assert state({**ours, "state": "done"}, {"state": "done"}) == SKIP
+    assert decide(run, force=True).action == RUN
