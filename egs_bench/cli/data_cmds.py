@@ -13,16 +13,18 @@ from egs_bench.cli.app import app
 
 @app.command("info")
 def info(
-    seq: Path = typer.Argument(..., help="Sequence folder (canonical format: meta.yaml, ...)."),
+    seq: str = typer.Argument(..., help="Sequence folder (canonical format: meta.yaml, ...) or "
+                                        "a name under $EGS_BENCH_DATA (built-in names are "
+                                        "generated on first use)."),
     check: bool = typer.Option(
         True, "--check/--no-check", help="Decode every image and depth map to validate them."
     ),
 ) -> None:
     """Print a summary of a sequence: frames, duration, resolution, intrinsics, events, blur."""
     from egs_bench.datasets.inspect import sequence_summary
-    from egs_bench.datasets.sequence import Sequence
+    from egs_bench.datasets.registry import load_sequence
 
-    sequence = Sequence.open(seq)
+    sequence = load_sequence(seq)
     if check:
         sequence.validate_contents()
     table = Table(title=f"sequence {sequence.name}", show_header=False)
@@ -35,7 +37,7 @@ def info(
 
 @app.command("show")
 def show(
-    seq: Path = typer.Argument(..., help="Sequence folder."),
+    seq: str = typer.Argument(..., help="Sequence folder or name (as for `info`)."),
     frame: int = typer.Option(0, "--frame", "-f", help="Frame index to show."),
     out: Path = typer.Option(..., "--out", "-o", help="PNG file to write."),
     overwrite: bool = typer.Option(False, "--overwrite",
@@ -43,14 +45,14 @@ def show(
 ) -> None:
     """Write a PNG panel of one frame: observed, sharp GT, depth and the exposure's event map."""
     from egs_bench.datasets.inspect import save_frame_panel
-    from egs_bench.datasets.sequence import Sequence
+    from egs_bench.datasets.registry import load_sequence
     from egs_bench.errors import ConfigError
     from egs_bench.outputs import prepare_output
 
-    sequence = Sequence.open(seq)
+    sequence = load_sequence(seq)
     if not 0 <= frame < len(sequence):
         raise ConfigError(f"--frame {frame} out of range: {seq} has {len(sequence)} frames")
-    prepare_output(out, "png", overwrite=overwrite, inputs=[seq])
+    prepare_output(out, "png", overwrite=overwrite, inputs=[sequence.path])
     save_frame_panel(sequence, frame, out)
     Console().print(f"wrote {out}")
 

@@ -51,4 +51,4 @@ def test_info_and_show_commands(tiny_sequence: Path, tmp_path: Path, capsys) -> 
 def test_info_bad_path_is_one_line(tmp_path: Path, capsys) -> None:
     assert main(["info", str(tmp_path / "missing")]) == 3  # a data error, not a usage error
     err = capsys.readouterr().err.strip()
-    assert err.count("\n") == 0 and "not found" in err
+    assert err.count("\n") == 0 and "no such sequence folder" in err
