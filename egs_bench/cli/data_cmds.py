@@ -61,7 +61,7 @@ def show(
 def demo(
     out: Path = typer.Option(Path("demo_out"), "--out", "-o",
                              help="Folder for the demo's runs, plots and frame panel."),
-    sequence: str = typer.Option("demo", "--seq", "-s",
+    sequence: str = typer.Option("demo-blur", "--seq", "-s",
                                  help="Sequence name or folder (built-in names are generated "
                                       "under $EGS_BENCH_DATA, default ./data, on first use)."),
     preset: str = typer.Option("cpu", "--preset", help="SLAM configuration preset."),

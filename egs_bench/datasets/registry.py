@@ -70,6 +70,11 @@ BUILTIN_SEQUENCES: dict[str, BuiltinSequence] = {
     "studio-fast": BuiltinSequence("studio", "studio-s's motion 3x faster (strong blur)",
                                    frames=40, width=224, height=128, speed=1.2, seed=9,
                                    exposure_ms=25.0),
+    # `make demo`: demo-fast's room and motion, 24 frames, so that both methods run at the
+    # sequence's own resolution within the demo's 5 minutes on 2 cores
+    "demo-blur": BuiltinSequence("office", "short strongly blurred sequence for `make demo`",
+                                 frames=24, width=224, height=128, speed=1.2, seed=7,
+                                 exposure_ms=25.0),
     # Paper scale (EventReplica: 448x256, hundreds of frames): 300 frames = 10 s at 30 Hz,
     # strong hand-held blur (speed 1 with a 25 ms exposure: ~5 px mean motion per exposure at
     # 448 px), one per scene, and an unblurred twin of the first.

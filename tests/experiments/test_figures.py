@@ -94,3 +94,18 @@ def test_figure_cli(runs, tmp_path, capsys) -> None:
     assert main(["figure", "qualitative", str(good.path), "-o", str(tmp_path / "c.pdf"),
                  "--crop", "1,2,3"]) == 2
     assert "--crop must be x,y,w,h" in capsys.readouterr().err
+
+
+def test_detail_crops_find_the_textured_regions_without_overlap() -> None:
+    from egs_bench.eval.figures import detail_crops
+
+    rng = np.random.default_rng(0)
+    img = np.full((64, 100, 3), 128, np.uint8)
+    img[40:56, 70:90] = rng.integers(0, 255, (16, 20, 3))  # strongest texture
+    img[5:15, 5:25] = rng.integers(90, 170, (10, 20, 3))   # weaker texture
+    crops = detail_crops(img, n=2, size=(20, 16))
+    (x0, y0, w, h), (x1, y1, _, _) = crops
+    assert (w, h) == (20, 16)
+    assert abs(x0 - 70) <= 2 and abs(y0 - 40) <= 2
+    assert x1 < 30 and y1 < 20  # the second box goes to the other textured patch
+    assert x1 + w <= x0 or x0 + w <= x1 or y1 + h <= y0 or y0 + h <= y1  # no overlap
