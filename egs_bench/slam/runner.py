@@ -92,7 +92,11 @@ def run_slam(seq: Sequence, out: str | Path, *, method_name: str, config: SlamCo
             eta = (now - phase_start[name]) / done * (total - done) if done else float("nan")
             bar.set_postfix_str(f"{name} {done}/{total} iterations, ETA {eta:.0f} s")
 
-        result = system.run(n, on_frame=on_frame, on_phase=on_phase if progress else None)
+        try:
+            result = system.run(n, on_frame=on_frame, on_phase=on_phase if progress else None)
+        except BaseException:
+            _write_partial_trajectory(run, system, seq)
+            raise
         total_wall = time.perf_counter() - t_start
         bar.close()
         poses_wc = np.stack([invert_pose(s.pose1_cw) for s in result.states])
@@ -119,6 +123,21 @@ def run_slam(seq: Sequence, out: str | Path, *, method_name: str, config: SlamCo
                 f"{len(result.divergences)} divergence(s)")
         run.mark_done()
     return run
+
+
+def _write_partial_trajectory(run: RunFolder, system: SlamSystem, seq: Sequence) -> None:
+    """The trajectory of the frames processed before an interruption or a failure, so the
+    run can still be scored over them (the run stays marked interrupted / failed)."""
+    states = getattr(system, "states", None) or []
+    if not states:
+        return
+    try:
+        poses_wc = np.stack([invert_pose(s.pose1_cw) for s in states])
+        run.write_trajectory(np.asarray(seq.timestamps_s[:len(states)]), poses_wc)
+        run.log(f"wrote the trajectory of the {len(states)} frame(s) processed before the run "
+                "stopped")
+    except Exception as exc:  # noqa: BLE001 (never hide the original error)
+        run.log(f"could not write the partial trajectory: {exc}")
 
 
 @torch.no_grad()

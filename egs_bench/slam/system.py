@@ -71,6 +71,7 @@ class SlamSystem:
         else:
             self.theta = (float(seq.pos_threshold), float(seq.neg_threshold))
         self.eps = float(seq.eps)
+        self.states: list[FrameState] = []  # filled by run()
         self.want_events = cfg.method.event_tracking or cfg.method.event_mapping
         if self.want_events and not getattr(seq, "has_events", True):
             self.log("sequence has no events: event losses see empty event maps")
@@ -138,6 +139,7 @@ class SlamSystem:
         t_wall = time.perf_counter()
         gt0 = invert_pose(np.asarray(self.seq.poses[0], dtype=np.float64))
         states = [FrameState(0, gt0.copy(), gt0.copy())]
+        self.states = states  # grows frame by frame: what an interrupted run got done
         obs0 = self._obs(0)
         observations: dict[int, FrameObs] = {0: obs0}
         kf_states: dict[int, FrameState] = {0: states[0]}

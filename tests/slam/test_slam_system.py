@@ -175,6 +175,31 @@ def test_failure_marks_run_failed_or_interrupted(tiny_sequence: Path, tmp_path: 
     assert status.state == state and words in status.reason
 
 
+def test_interrupted_run_keeps_the_trajectory_of_the_processed_frames(
+        tiny_sequence: Path, tmp_path: Path, monkeypatch) -> None:
+    """Ctrl-C (or a cluster's SIGTERM) at frame 2: the run is marked interrupted and holds the
+    poses of frames 0 and 1, so it can be scored over them."""
+    from egs_bench.slam import system
+
+    seq = Sequence.open(tiny_sequence)
+    cfg = methods.BUILTIN["monogs"].config("cpu").replace(**FAST)
+    real = system.track_frame
+
+    def stop_at_2(gmap, crf, obs, *args, **kwargs):
+        if obs.index == 2:
+            raise KeyboardInterrupt
+        return real(gmap, crf, obs, *args, **kwargs)
+
+    monkeypatch.setattr(system, "track_frame", stop_at_2)
+    with pytest.raises(KeyboardInterrupt):
+        run_slam(seq, tmp_path / "run", method_name="monogs", config=cfg, progress=False)
+    run = RunFolder.open(tmp_path / "run")
+    assert run.read_status().state == "interrupted"
+    traj = run.read_trajectory()
+    assert len(traj.poses) == 2
+    np.testing.assert_allclose(traj.timestamps, seq.timestamps_s[:2])
+
+
 def test_registry_builtins_import_path_and_errors(tmp_path: Path, monkeypatch) -> None:
     names = registry.available_methods()
     for n in ("egs", "egs-no-event-tracking", "egs-no-event-mapping", "egs-no-events",
