@@ -24,7 +24,11 @@ def _start_generator(out: Path, cwd: Path):
             "--width", "32", "--height", "24", "--no-progress"]
     proc = python_subprocess(f"import sys; from egs_bench.cli import main; "
                              f"sys.exit(main({argv!r}))", cwd)
-    wait_for(lambda: any((s / out.name).is_dir() for s in _staging(out)), proc)
+    # Wait until frames are being written (start-up and kernel compilation done), not only the
+    # folder made: in one fresh-clone CI run a SIGTERM sent right after the folder appeared
+    # was reported but exited 0.
+    wait_for(lambda: any(len(list((s / out.name / "rgb").glob("*.png"))) >= 3
+                         for s in _staging(out)), proc)
     return proc
 
 
