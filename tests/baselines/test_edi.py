@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from plane_scene import make_plane_sequence  # tests/ is on sys.path (its conftest.py)
 
 from egs_bench.baselines.edi import (
     EdiConfig,
@@ -139,11 +140,6 @@ def test_no_events_returns_the_frame_unchanged() -> None:
 def blurred_plane(tmp_path_factory) -> Path:
     """2 frames, 96x64, of the plane scene at 4 m/s: a 15 ms exposure smears it by ~40 px;
     events with c = 0.25 (generation ~1 s)."""
-    import sys
-
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-    from plane_scene import make_plane_sequence
-
     return make_plane_sequence(tmp_path_factory.mktemp("edi") / "plane", frames=2, width=96,
                                height=64, speed_mps=4.0)
 
