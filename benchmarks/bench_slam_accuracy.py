@@ -29,7 +29,9 @@ invocations, see BENCHMARKS.md).
 The runs go through ``egs-bench sweep``'s machinery (:mod:`egs_bench.experiments`): one process
 per run, ``--jobs`` runs in parallel sharing the cores (one thread each), run folders under
 ``<out>/runs/<seq>/<method>/seed<k>``, and a second invocation skips runs that finished with the
-same configuration (``--force`` reruns them, e.g. after a code change).
+same configuration (``--force`` reruns them, e.g. after a code change). ``--status`` starts
+nothing and tabulates the runs as they are (unfinished ones carry their state in ``error``):
+for a long benchmark running in the background, or several invocations sharing one ``--out``.
 
 Sequences are folders or names under $EGS_BENCH_DATA (built-in synthetic names are generated
 on first use).
@@ -43,8 +45,9 @@ from pathlib import Path
 import pandas as pd
 
 from egs_bench.eval.results import read_run_result
-from egs_bench.experiments.spec import LocalOptions, SweepSpec
+from egs_bench.experiments.spec import LocalOptions, RunSpec, SweepSpec
 from egs_bench.experiments.sweep import run_sweep
+from egs_bench.fileio import write_text_atomic
 from egs_bench.runs.registry import get_method
 from egs_bench.slam.config import parse_overrides
 from egs_bench.slam.methods import ConfiguredSlamMethod
@@ -63,7 +66,7 @@ def run_grid(args: argparse.Namespace) -> pd.DataFrame:
     main = [m for m in methods if m in MAIN_METHODS]
     ablations = [m for m in methods if m not in MAIN_METHODS]
     grids = [(main, args.seq), (ablations, [s for s in args.seq if s in ablation_seqs])]
-    run_dirs: list[Path] = []  # this invocation's runs only (not older runs in the folder)
+    specs: list[RunSpec] = []  # this invocation's runs only (not older runs in the folder)
     for grid_methods, seqs in grids:
         if not grid_methods or not seqs:
             continue
@@ -72,14 +75,21 @@ def run_grid(args: argparse.Namespace) -> pd.DataFrame:
                          devices=(args.device,), max_frames=args.max_frames,
                          options=dict(args.options), out=args.out,
                          local=LocalOptions(jobs=args.jobs, threads_per_job=None))
-        report = run_sweep(spec, force=args.force, say=print)
-        run_dirs += [Path(r.run_dir) for r in report.runs]
+        report = run_sweep(spec, force=args.force, status_only=args.status, say=print)
+        specs += report.runs
     rows = []
-    for r in (read_run_result(p, args.out / "runs") for p in run_dirs):
+    for spec_ in specs:
+        # names from the spec: a run not started yet has no folder to read them from
+        row: dict[str, object] = {"sequence": spec_.sequence_name, "method": spec_.method,
+                                  "seed": spec_.seed}
+        if not Path(spec_.run_dir).is_dir():
+            rows.append({**row, "error": "pending: not started"})
+            continue
+        r = read_run_result(Path(spec_.run_dir), args.out / "runs")
         v = r.values
-        row = {"sequence": r.sequence, "method": r.method, "seed": r.seed,
-               "ate_cm": 100 * v["ate"] if "ate" in v else None, "psnr_db": v.get("psnr"),
-               "ssim": v.get("ssim"), "fps": v.get("fps")}
+        row["method"] = r.method or spec_.method  # the recorded name (not an import path)
+        row |= {"ate_cm": 100 * v["ate"] if "ate" in v else None, "psnr_db": v.get("psnr"),
+                "ssim": v.get("ssim"), "fps": v.get("fps")}
         if r.status not in ("ok", "incomplete"):
             row["error"] = f"{r.status}: {r.reason}"[:80]
         rows.append(row)
@@ -110,8 +120,11 @@ def print_ratios(df: pd.DataFrame, unblurred: list[str], setting: str) -> None:
     if not {"egs", "monogs"} <= set(df["method"]) or "ate_cm" not in df:
         return
     piv = df.pivot(index="sequence", columns="method", values=["ate_cm", "psnr_db"])
-    ratio = piv["ate_cm"]["egs"] / piv["ate_cm"]["monogs"]
-    gain = piv["psnr_db"]["egs"] - piv["psnr_db"]["monogs"]
+    ratio = (piv["ate_cm"]["egs"] / piv["ate_cm"]["monogs"]).dropna()
+    gain = (piv["psnr_db"]["egs"] - piv["psnr_db"]["monogs"]).reindex(ratio.index)
+    if ratio.empty:
+        print("no sequence has finished runs of both egs and monogs yet")
+        return
     for name in ratio.index:
         print(f"{name}: ATE(egs)/ATE(monogs) = {ratio[name]:.3f}, "
               f"PSNR(egs) - PSNR(monogs) = {gain[name]:+.2f} dB")
@@ -141,6 +154,8 @@ def main() -> None:
                     help="runs in parallel (one torch thread each; FPS then reflects sharing)")
     ap.add_argument("--force", action="store_true",
                     help="rerun runs that finished earlier with the same configuration")
+    ap.add_argument("--status", action="store_true",
+                    help="start nothing: tabulate the runs as they are")
     ap.add_argument("--set", dest="overrides", action="append", default=[],
                     metavar="KEY=VALUE", help="configuration override for every method")
     ap.add_argument("--unblurred", action="append", default=[],
@@ -149,19 +164,20 @@ def main() -> None:
     args = ap.parse_args()
     args.options = parse_overrides(args.overrides)
     args.seeds = args.seeds or [0]
+    args.out = args.out.resolve()  # the sweep reports absolute run folders
     if args.options and any(not isinstance(get_method(m), ConfiguredSlamMethod)
                             for m in args.methods.split(",")):
         ap.error("--set applies to built-in methods only")
 
     runs = run_grid(args)
     args.out.mkdir(parents=True, exist_ok=True)
-    runs.to_csv(args.out / "runs.csv", index=False)
+    write_text_atomic(args.out / "runs.csv", runs.to_csv(index=False))
     df = summarise_seeds(runs)
-    df.to_csv(args.out / "accuracy.csv", index=False)
+    write_text_atomic(args.out / "accuracy.csv", df.to_csv(index=False))
     print(df.to_markdown(index=False, floatfmt=".3f"))
     seeds = ", ".join(str(s) for s in args.seeds)
     print_ratios(df, args.unblurred, f"preset {args.preset}, seed(s) {seeds}")
-    (args.out / "accuracy.md").write_text(df.to_markdown(index=False, floatfmt=".3f") + "\n")
+    write_text_atomic(args.out / "accuracy.md", df.to_markdown(index=False, floatfmt=".3f") + "\n")
 
 
 if __name__ == "__main__":

@@ -95,6 +95,9 @@ class FakeMethod:
 
 GOOD = FakeMethod("good", noise_m=0.01, render_sd=4.0)
 BAD = FakeMethod("bad", noise_m=0.03, render_sd=12.0)
+# named like the benchmark's two main methods (its ratios compare "egs" with "monogs")
+FAKE_EGS = FakeMethod("egs", noise_m=0.01, render_sd=4.0)
+FAKE_MONOGS = FakeMethod("monogs", noise_m=0.03, render_sd=12.0)
 
 
 def worker_env(monkeypatch) -> None:
