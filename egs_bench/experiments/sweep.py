@@ -24,7 +24,14 @@ from egs_bench.errors import ConfigError, EgsBenchError
 from egs_bench.eval.results import metric_values
 from egs_bench.experiments.backends import Outcome, plan_slots, run_local, run_slurm
 from egs_bench.experiments.spec import RunSpec, SweepSpec, expand, in_shard
-from egs_bench.experiments.worker import RUN, decide, lock_is_held, read_record, run_state
+from egs_bench.experiments.worker import (
+    EVALUATE,
+    STARTS_WORK,
+    decide,
+    lock_is_held,
+    read_record,
+    run_state,
+)
 from egs_bench.fileio import write_text_atomic
 
 BACKENDS = ("local", "slurm")
@@ -113,10 +120,12 @@ def run_row(spec: RunSpec, outcome: Outcome | None = None, invoked: bool = True
         reason = reason or record.get("reason") or record.get("evaluation_error") or ""
         if record.get("evaluation_error"):
             reason = f"evaluation: {record['evaluation_error']}"
+        if decision.action == EVALUATE:
+            reason = decision.why
         wall = float(record.get("run_wall_s", math.nan)) + float(record.get("eval_wall_s", 0.0))
     ate, psnr = _metrics(run_dir) if state == "done" else (math.nan, math.nan)
     action = outcome.action if outcome is not None else (
-        "skipped" if invoked and decision.action != RUN and state == "done" else "")
+        "skipped" if invoked and decision.action not in STARTS_WORK and state == "done" else "")
     if outcome is not None and outcome.note and not reason:
         reason = outcome.note
     return {"run": spec.run_id, "method": spec.method, "sequence": spec.sequence_name,
@@ -193,7 +202,7 @@ def run_sweep(spec: SweepSpec, *, out: Path | None = None,
     selected = [r for r in runs if in_shard(r, shard)]
     outcomes: dict[str, Outcome] = {}
     if not status_only:
-        todo = [r for r in selected if decide(r, force, retry_failed).action == RUN]
+        todo = [r for r in selected if decide(r, force, retry_failed).action in STARTS_WORK]
         shard_txt = f" (shard {shard[0]}/{shard[1]})" if shard else ""
         say(f"sweep {out}: {len(runs)} runs, {len(selected)} in this invocation{shard_txt}, "
             f"{len(todo)} to run")

@@ -8,7 +8,8 @@ executed twice at once, even by two sweeps or a resubmitted cluster job) the wor
    a finished run with the same configuration hash is skipped; a run with another hash is
    ``stale`` and left alone unless forced; a folder the sweep did not create is a ``conflict``
    and never touched; an interrupted or killed run (status still ``running``) is run again;
-   a failed run is kept unless ``--retry-failed``;
+   a run whose method finished (status ``done``) but whose evaluation was interrupted is only
+   evaluated; a failed run is kept unless ``--retry-failed``;
 2. moves a run folder it is going to replace (always one this sweep created) out of the way;
 3. writes the ``sweep.json`` record, runs the method (SIGTERM, e.g. a cluster time limit, is
    handled like Ctrl-C: the run is marked failed and the record ``interrupted``), evaluates a
@@ -48,6 +49,8 @@ EXIT_DONE, EXIT_FAILED, EXIT_BUSY, EXIT_NOT_RUN, EXIT_INTERRUPTED = 0, 10, 11, 1
 
 # decisions
 RUN, SKIP, STALE, CONFLICT, KEEP_FAILED = "run", "skip", "stale", "conflict", "keep-failed"
+EVALUATE = "evaluate"  # the method finished; only its evaluation is missing
+STARTS_WORK = (RUN, EVALUATE)
 
 
 class Interrupted(BaseException):
@@ -118,9 +121,12 @@ def decide(spec: RunSpec, force: bool = False, retry_failed: bool = False) -> De
                                f"{record.get('config_hash')} != {spec.config_hash}); kept: "
                                "rerun with --force or use another --out")
     state = run_state(run_dir)
-    # a record still "running" means the worker died (the caller holds or tested the lock),
-    # possibly after the method finished but before its evaluation: run it again
+    # a record still "running" means the worker died (the caller holds or tested the lock);
+    # the method marks its folder done only after writing every output, so a done folder under
+    # an unfinished record lost only its evaluation (hours of SLAM are not redone for that)
     if record.get("state") in ("interrupted", "running") or state in (None, "running"):
+        if state == "done" and not force:
+            return Decision(EVALUATE, "the method finished; its evaluation was interrupted")
         return Decision(RUN, "interrupted before it finished")
     if state == "done":
         return Decision(RUN, "--force") if force else Decision(SKIP, "finished earlier")
@@ -182,28 +188,59 @@ def _on_sigterm(signum: int, frame: Any) -> None:
     raise Interrupted(f"signal {signal.Signals(signum).name}")
 
 
-def execute(spec: RunSpec, redirect: bool = True) -> dict[str, Any]:
+def execute(spec: RunSpec, redirect: bool = True, evaluate_only: bool = False
+            ) -> dict[str, Any]:
     """Run the method of ``spec`` into its (prepared) run folder, evaluate it, and return the
-    final record (also written to ``sweep.json``)."""
-    from egs_bench.datasets.sequence import Sequence
-    from egs_bench.runs.registry import get_method
+    final record (also written to ``sweep.json``).
 
+    With ``evaluate_only`` the folder holds a finished run (status ``done``) whose evaluation
+    was interrupted: the method's outputs are kept and only evaluated. SIGTERM during the
+    evaluation leaves the record ``interrupted``, so the next invocation evaluates again.
+    """
     run_dir = Path(spec.run_dir)
     run_dir.mkdir(parents=True, exist_ok=True)
+    earlier = read_record(run_dir) if evaluate_only else None
     record: dict[str, Any] = {
         "run_id": spec.run_id, "config_hash": spec.config_hash, "seed": spec.seed,
         "settings_name": spec.settings_name, "identity": spec.identity, "state": "running",
-        "host": socket.gethostname(), "pid": os.getpid(), "started_utc": now_utc(),
+        "host": socket.gethostname(), "pid": os.getpid(),
+        "started_utc": (earlier or {}).get("started_utc") or now_utc(),
         "threads": os.environ.get("EGS_BENCH_THREADS"),
         "cuda_visible_devices": os.environ.get("CUDA_VISIBLE_DEVICES"),
     }
     write_record(run_dir, record)
     if redirect:
         _redirect_output(run_dir / WORKER_LOG)
-    print(f"{now_utc()} sweep run {spec.run_id} (hash {spec.config_hash}) pid {os.getpid()}",
+    what = "evaluation of finished run" if evaluate_only else "sweep run"
+    print(f"{now_utc()} {what} {spec.run_id} (hash {spec.config_hash}) pid {os.getpid()}",
           flush=True)
-    t0 = time.perf_counter()
     previous = signal.signal(signal.SIGTERM, _on_sigterm)
+    try:
+        if evaluate_only:
+            record["state"] = "done"
+            if (method_wall := _method_wall_s(run_dir)) is not None:
+                record["run_wall_s"] = method_wall
+        else:
+            _run_method(spec, run_dir, record)
+        if record["state"] == "done":
+            _evaluate(spec, run_dir, record)
+    except (KeyboardInterrupt, Interrupted) as exc:
+        record.update(state="interrupted", reason=f"interrupted ({exc or 'Ctrl-C'})")
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+    record["finished_utc"] = now_utc()
+    write_record(run_dir, record)
+    print(f"{now_utc()} finished: {record['state']} {record.get('reason', '')}", flush=True)
+    return record
+
+
+def _run_method(spec: RunSpec, run_dir: Path, record: dict[str, Any]) -> None:
+    """Run the method; set the record's state, reason and ``run_wall_s`` (interruptions
+    propagate, with ``run_wall_s`` set)."""
+    from egs_bench.datasets.sequence import Sequence
+    from egs_bench.runs.registry import get_method
+
+    t0 = time.perf_counter()
     try:
         method = get_method(spec.method)
         sequence = Sequence.open(spec.sequence)
@@ -214,28 +251,35 @@ def execute(spec: RunSpec, redirect: bool = True) -> dict[str, Any]:
         record["state"] = state if state in ("done", "failed", "tracking_lost") else "failed"
         if record["state"] != "done":
             record["reason"] = _status_reason(run_dir) or "the method did not mark the run done"
-    except (KeyboardInterrupt, Interrupted) as exc:
-        record.update(state="interrupted", reason=f"interrupted ({exc or 'Ctrl-C'})")
     except Exception as exc:  # noqa: BLE001 (any failure of one run is recorded, not raised)
         record.update(state=run_state(run_dir) if run_state(run_dir) == "tracking_lost"
                       else "failed", reason=f"{type(exc).__name__}: {exc}".splitlines()[0])
     finally:
-        signal.signal(signal.SIGTERM, previous)
-    record["run_wall_s"] = round(time.perf_counter() - t0, 3)
-    if record["state"] == "done":
-        t1 = time.perf_counter()
-        try:
-            from egs_bench.eval.evaluate import evaluate_run
+        record["run_wall_s"] = round(time.perf_counter() - t0, 3)
 
-            evaluate_run(run_dir, spec.protocol, write=True)
-            record["evaluated"] = spec.protocol
-        except Exception as exc:  # noqa: BLE001 (the run stays done; the table says why)
-            record["evaluation_error"] = f"{type(exc).__name__}: {exc}".splitlines()[0]
+
+def _evaluate(spec: RunSpec, run_dir: Path, record: dict[str, Any]) -> None:
+    """Evaluate a finished run with the sweep's protocol (an evaluation error is recorded; the
+    run stays done and the table says why)."""
+    from egs_bench.eval.evaluate import evaluate_run
+
+    t1 = time.perf_counter()
+    try:
+        evaluate_run(run_dir, spec.protocol, write=True)
+        record["evaluated"] = spec.protocol
+    except Exception as exc:  # noqa: BLE001
+        record["evaluation_error"] = f"{type(exc).__name__}: {exc}".splitlines()[0]
+    finally:
         record["eval_wall_s"] = round(time.perf_counter() - t1, 3)
-    record["finished_utc"] = now_utc()
-    write_record(run_dir, record)
-    print(f"{now_utc()} finished: {record['state']} {record.get('reason', '')}", flush=True)
-    return record
+
+
+def _method_wall_s(run_dir: Path) -> float | None:
+    """The method's own wall time from ``timing.json`` (for a run evaluated later)."""
+    try:
+        value = json.loads((run_dir / "timing.json").read_text()).get("total_wall_s")
+    except (OSError, json.JSONDecodeError, UnicodeDecodeError, AttributeError):
+        return None
+    return round(float(value), 3) if isinstance(value, int | float) else None
 
 
 def _status_reason(run_dir: Path) -> str | None:
@@ -254,11 +298,14 @@ def run_one(spec: RunSpec, force: bool = False, retry_failed: bool = False,
             print(f"{spec.run_id}: running in another process; not started", file=sys.stderr)
             return EXIT_BUSY
         decision = decide(spec, force, retry_failed)
-        if decision.action != RUN:
+        if decision.action not in STARTS_WORK:
             print(f"{spec.run_id}: {decision.action} ({decision.why})", file=sys.stderr)
             return EXIT_NOT_RUN
-        clear_run_folder(spec)
-        record = execute(spec, redirect=redirect)
+        if decision.action == EVALUATE:
+            record = execute(spec, redirect=redirect, evaluate_only=True)
+        else:
+            clear_run_folder(spec)
+            record = execute(spec, redirect=redirect)
     return {"done": EXIT_DONE, "interrupted": EXIT_INTERRUPTED}.get(record["state"], EXIT_FAILED)
 
 

@@ -7,7 +7,8 @@ the renders are the sharp frames plus seeded noise. Worker processes import them
 
 Environment knobs (read inside the worker process): ``FAKE_SLEEP_S`` seconds to sleep before
 writing (for kill and timeout tests), ``FAKE_FAIL`` = ``<method>:<seed>`` pairs (comma
-separated) that raise, ``FAKE_LOST`` the same for a tracking loss.
+separated) that raise, ``FAKE_LOST`` the same for a tracking loss, ``FAKE_SLEEP_AFTER_S``
+seconds to sleep after the run is marked done (to interrupt a worker before its evaluation).
 """
 
 from __future__ import annotations
@@ -90,6 +91,7 @@ class FakeMethod:
                 run.write_render(i, np.clip(noisy, 0, 255).astype(np.uint8))
             run.write_timing(total_wall_s=0.01 * n, per_frame_s=[0.01] * n, render_fps=100.0)
             run.mark_done()
+        time.sleep(float(os.environ.get("FAKE_SLEEP_AFTER_S", "0")))
         return run
 
 

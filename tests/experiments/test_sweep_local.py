@@ -97,6 +97,37 @@ def test_sweep_survives_kill_and_resumes(sweep_dir) -> None:
     assert _records(out) == after
 
 
+def test_run_interrupted_after_the_method_finished_is_only_evaluated(sweep_dir) -> None:
+    """SIGTERM after the method marked its folder done (before the evaluation): the next
+    invocation evaluates the kept outputs instead of rerunning the method."""
+    sweep = _write(sweep_dir / "e.yaml", {"methods": ["sweep_fixtures:GOOD"],
+                                          "sequences": ["data/sa"], "out": "out"})
+    run_dir = sweep_dir / "out/runs/sa/good/seed0"
+    env = {**os.environ, "FAKE_SLEEP_AFTER_S": "60"}
+    proc = subprocess.Popen([*EGS_BENCH, "sweep", str(sweep)], env=env, start_new_session=True,
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline and not (
+            (run_dir / "status.json").is_file()
+            and json.loads((run_dir / "status.json").read_text())["state"] == "done"):
+        time.sleep(0.1)
+    os.killpg(proc.pid, signal.SIGTERM)
+    proc.wait(timeout=60)
+    record = json.loads((run_dir / "sweep.json").read_text())
+    assert record["state"] == "interrupted" and not (run_dir / "metrics.json").exists()
+    trajectory = (run_dir / "trajectory.txt").stat()
+
+    report = run_sweep(load_sweep(sweep), say=lambda m: None)
+    row = report.summary.set_index("run").loc["sa/good/seed0"]
+    assert row["state"] == "done" and row["action"] == "ran", report.summary_md
+    assert (run_dir / "trajectory.txt").stat().st_mtime_ns == trajectory.st_mtime_ns
+    assert (run_dir / "trajectory.txt").stat().st_ino == trajectory.st_ino  # not rerun
+    assert json.loads((run_dir / "metrics.json").read_text())["ate"]["rmse_m"] > 0
+    record = json.loads((run_dir / "sweep.json").read_text())
+    assert record["state"] == "done" and record["evaluated"] and record["run_wall_s"] > 0
+    assert "evaluation of finished run sa/good/seed0" in (run_dir / "worker.log").read_text()
+
+
 def test_sweep_failures_conflicts_and_retries(sweep_dir, monkeypatch) -> None:
     data = {"methods": ["sweep_fixtures:GOOD"], "sequences": ["data/sa"], "seeds": [0, 1, 2],
             "local": {"jobs": 2}, "out": "out"}

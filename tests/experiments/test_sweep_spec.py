@@ -139,7 +139,15 @@ def test_plan_slots_cpu_budget_and_gpus(tmp_path, seqs) -> None:
 def test_decide_from_the_run_folder(tmp_path, seqs) -> None:
     import json
 
-    from egs_bench.experiments.worker import CONFLICT, KEEP_FAILED, RUN, SKIP, STALE, decide
+    from egs_bench.experiments.worker import (
+        CONFLICT,
+        EVALUATE,
+        KEEP_FAILED,
+        RUN,
+        SKIP,
+        STALE,
+        decide,
+    )
 
     spec = parse_sweep({"methods": ["sweep_fixtures:GOOD"], "sequences": ["a"]}, "s.yaml")
     run = expand(spec, seqs, tmp_path)[0]
@@ -159,7 +167,10 @@ def test_decide_from_the_run_folder(tmp_path, seqs) -> None:
     assert state({**ours, "state": "done"}, {"state": "done"}) == SKIP
     assert state({**ours, "state": "done", "config_hash": "x"}, {"state": "done"}) == STALE
     # killed after the method finished, before its evaluation: the record still says running
-    assert state({**ours, "state": "running"}, {"state": "done"}) == RUN
+    # (or interrupted, for SIGTERM); the outputs are kept and only evaluated, unless forced
+    assert state({**ours, "state": "running"}, {"state": "done"}) == EVALUATE
+    assert decide(run, force=True).action == RUN
+    assert state({**ours, "state": "interrupted"}, {"state": "done"}) == EVALUATE
     assert state({**ours, "state": "running"}, None) == RUN
     assert state({**ours, "state": "interrupted"}, {"state": "failed"}) == RUN
     assert state({**ours, "state": "failed"}, {"state": "failed"}) == KEEP_FAILED
