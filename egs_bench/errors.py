@@ -78,3 +78,20 @@ class Interrupted(KeyboardInterrupt):  # noqa: N818 (a KeyboardInterrupt, named 
     @property
     def exit_code(self) -> int:
         return 128 + self.signum
+
+
+def interruption_in(exc: BaseException | None) -> KeyboardInterrupt | None:
+    """The Ctrl-C / SIGTERM behind ``exc``, if any (``exc`` itself or its cause/context chain).
+
+    A signal handler's exception that arrives while a numba kernel runs surfaces as
+    ``SystemError: CPUDispatcher(...) returned a result with an exception set`` with the
+    interruption as its cause (seen when a sweep was stopped mid-run); typer wraps Ctrl-C in
+    ``SystemExit``. Both must still count as an interruption, not as a failure or a bug.
+    """
+    seen: set[int] = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return exc
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return None

@@ -28,6 +28,7 @@ from egs_bench.errors import (
     EXIT_OK,
     EgsBenchError,
     Interrupted,
+    interruption_in,
 )
 
 _COMMAND_MODULES = (
@@ -85,10 +86,9 @@ def main(argv: list[str] | None = None) -> int:
     except SystemExit as exc:
         # typer reports usage errors itself (exit 2) and turns Ctrl-C into exit 130; a signal
         # we raised as Interrupted is found in the exception chain
-        interrupted = _find_interrupted(exc)
+        interrupted = interruption_in(exc)
         if interrupted is not None:
-            err.print(str(interrupted))
-            return interrupted.exit_code
+            return _report_interruption(err, interrupted)
         return int(exc.code or 0) if not isinstance(exc.code, str) else 1
     except EgsBenchError as exc:
         if OPTIONS.debug:
@@ -96,8 +96,7 @@ def main(argv: list[str] | None = None) -> int:
         err.print(f"[bold red]error:[/] {exc}", markup=True)
         return exc.exit_code
     except KeyboardInterrupt as exc:
-        err.print(str(exc) if isinstance(exc, Interrupted) else "interrupted")
-        return exc.exit_code if isinstance(exc, Interrupted) else 130
+        return _report_interruption(err, exc)
     except OSError as exc:
         # a file-system failure (disk full, permission, vanished file) outside our own checks
         if OPTIONS.debug or exc.filename is None:
@@ -107,20 +106,18 @@ def main(argv: list[str] | None = None) -> int:
         err.print(f"[bold red]error:[/] {exc.filename}: {exc.strerror or exc}", markup=True)
         return EXIT_DATA
     except Exception as exc:  # noqa: BLE001 (last-resort one-line report; --debug shows all)
+        if (interrupted := interruption_in(exc)) is not None:  # e.g. raised inside numba
+            return _report_interruption(err, interrupted)
         if OPTIONS.debug:
             raise
         return _internal(err, exc)
     return EXIT_OK
 
 
-def _find_interrupted(exc: BaseException | None) -> Interrupted | None:
-    seen = 0
-    while exc is not None and seen < 10:
-        if isinstance(exc, Interrupted):
-            return exc
-        exc = exc.__cause__ or exc.__context__
-        seen += 1
-    return None
+def _report_interruption(err: Console, exc: KeyboardInterrupt) -> int:
+    """One line and the exit code 128 + signal (130 for a plain Ctrl-C)."""
+    err.print(str(exc) if isinstance(exc, Interrupted) else "interrupted")
+    return exc.exit_code if isinstance(exc, Interrupted) else 130
 
 
 def _internal(err: Console, exc: BaseException) -> int:

@@ -39,6 +39,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from egs_bench.errors import Interrupted, interruption_in
 from egs_bench.eval.results import SWEEP_RECORD_FILE
 from egs_bench.experiments.spec import STATE_DIR, RunSpec
 from egs_bench.fileio import write_text_atomic
@@ -51,10 +52,6 @@ EXIT_DONE, EXIT_FAILED, EXIT_BUSY, EXIT_NOT_RUN, EXIT_INTERRUPTED = 0, 10, 11, 1
 RUN, SKIP, STALE, CONFLICT, KEEP_FAILED = "run", "skip", "stale", "conflict", "keep-failed"
 EVALUATE = "evaluate"  # the method finished; only its evaluation is missing
 STARTS_WORK = (RUN, EVALUATE)
-
-
-class Interrupted(BaseException):
-    """SIGTERM received (cluster time limit, ``kill``): unwinds like Ctrl-C."""
 
 
 def now_utc() -> str:
@@ -185,7 +182,9 @@ def _redirect_output(path: Path) -> None:
 
 
 def _on_sigterm(signum: int, frame: Any) -> None:
-    raise Interrupted(f"signal {signal.Signals(signum).name}")
+    """SIGTERM (a cluster's time limit, ``kill``) unwinds like Ctrl-C: the method marks its run
+    folder interrupted, the record says ``interrupted``, and the next invocation reruns it."""
+    raise Interrupted(signum)
 
 
 def execute(spec: RunSpec, redirect: bool = True, evaluate_only: bool = False
@@ -224,8 +223,8 @@ def execute(spec: RunSpec, redirect: bool = True, evaluate_only: bool = False
             _run_method(spec, run_dir, record)
         if record["state"] == "done":
             _evaluate(spec, run_dir, record)
-    except (KeyboardInterrupt, Interrupted) as exc:
-        record.update(state="interrupted", reason=f"interrupted ({exc or 'Ctrl-C'})")
+    except KeyboardInterrupt as exc:
+        record.update(state="interrupted", reason=str(exc) or "interrupted by SIGINT (Ctrl-C)")
     finally:
         signal.signal(signal.SIGTERM, previous)
     record["finished_utc"] = now_utc()
@@ -252,6 +251,8 @@ def _run_method(spec: RunSpec, run_dir: Path, record: dict[str, Any]) -> None:
         if record["state"] != "done":
             record["reason"] = _status_reason(run_dir) or "the method did not mark the run done"
     except Exception as exc:  # noqa: BLE001 (any failure of one run is recorded, not raised)
+        if (interrupt := interruption_in(exc)) is not None:  # a signal inside numba
+            raise interrupt from None
         record.update(state=run_state(run_dir) if run_state(run_dir) == "tracking_lost"
                       else "failed", reason=f"{type(exc).__name__}: {exc}".splitlines()[0])
     finally:

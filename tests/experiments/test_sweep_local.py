@@ -189,7 +189,7 @@ def test_sweep_time_limit_and_dry_run(sweep_dir, monkeypatch) -> None:
     assert row["state"] == "timeout" and row["action"] == "timeout"
     assert "time limit of 0.15 min reached" in row["reason"]
     status = json.loads((sweep_dir / "out/runs/sa/good/seed0/status.json").read_text())
-    assert status["state"] == "failed" and "Interrupted" in status["reason"]
+    assert status["state"] == "interrupted" and status["reason"] == "interrupted by SIGTERM"
 
 
 @pytest.mark.slow

@@ -184,3 +184,23 @@ def test_user_methods_without_overwrite_support_are_told_so(tmp_path, tiny_seque
                      "--out", tmp_path / "r", "--overwrite")
     assert code == 2 and "does not support --overwrite" in err
     assert np.all([not (tmp_path / "r").exists()])
+
+
+def test_a_signal_surfacing_inside_numba_exits_as_an_interruption(monkeypatch, capsys) -> None:
+    """numba turns a signal handler's exception into ``SystemError: ... returned a result with
+    an exception set`` (the interruption as its cause): the CLI must exit 128 + 15 with one
+    line, not report an internal error (70)."""
+    from egs_bench.datasets import synthetic
+    from egs_bench.errors import Interrupted
+
+    def interrupted_inside_numba() -> dict:
+        try:
+            raise Interrupted(signal.SIGTERM)
+        except Interrupted as exc:
+            raise SystemError("CPUDispatcher(<function bin_tiles at 0x7f>) returned a result "
+                              "with an exception set") from exc
+
+    monkeypatch.setattr(synthetic, "list_scenes", interrupted_inside_numba)
+    code, err = _cli(capsys, "list-scenes")
+    assert code == 143, err
+    assert err.strip() == "interrupted by SIGTERM"
