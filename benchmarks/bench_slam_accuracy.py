@@ -29,7 +29,8 @@ invocations, see BENCHMARKS.md).
 The runs go through ``egs-bench sweep``'s machinery (:mod:`egs_bench.experiments`): one process
 per run, ``--jobs`` runs in parallel sharing the cores (one thread each), run folders under
 ``<out>/runs/<seq>/<method>/seed<k>``, and a second invocation skips runs that finished with the
-same configuration (``--force`` reruns them, e.g. after a code change). ``--status`` starts
+same configuration (``--force`` reruns them, e.g. after a code change; ``--retry-failed`` reruns
+only the failed ones). ``--status`` starts
 nothing and tabulates the runs as they are (unfinished ones carry their state in ``error``):
 for a long benchmark running in the background, or several invocations sharing one ``--out``.
 
@@ -75,7 +76,8 @@ def run_grid(args: argparse.Namespace) -> pd.DataFrame:
                          devices=(args.device,), max_frames=args.max_frames,
                          options=dict(args.options), out=args.out,
                          local=LocalOptions(jobs=args.jobs, threads_per_job=None))
-        report = run_sweep(spec, force=args.force, status_only=args.status, say=print)
+        report = run_sweep(spec, force=args.force, retry_failed=args.retry_failed,
+                           status_only=args.status, say=print)
         specs += report.runs
     rows = []
     for spec_ in specs:
@@ -154,6 +156,8 @@ def main() -> None:
                     help="runs in parallel (one torch thread each; FPS then reflects sharing)")
     ap.add_argument("--force", action="store_true",
                     help="rerun runs that finished earlier with the same configuration")
+    ap.add_argument("--retry-failed", action="store_true",
+                    help="rerun failed runs (finished ones are kept)")
     ap.add_argument("--status", action="store_true",
                     help="start nothing: tabulate the runs as they are")
     ap.add_argument("--set", dest="overrides", action="append", default=[],
