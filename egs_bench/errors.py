@@ -95,3 +95,8 @@ def interruption_in(exc: BaseException | None) -> KeyboardInterrupt | None:
         seen.add(id(exc))
         exc = exc.__cause__ or exc.__context__
     return None
+
+
+def interruption_reason(exc: KeyboardInterrupt) -> str:
+    """The one-line reason a run records for an interruption."""
+    return str(exc) or "interrupted by SIGINT (Ctrl-C)"

@@ -12,7 +12,7 @@ executed twice at once, even by two sweeps or a resubmitted cluster job) the wor
    evaluated; a failed run is kept unless ``--retry-failed``;
 2. moves a run folder it is going to replace (always one this sweep created) out of the way;
 3. writes the ``sweep.json`` record, runs the method (SIGTERM, e.g. a cluster time limit, is
-   handled like Ctrl-C: the run is marked failed and the record ``interrupted``), evaluates a
+   handled like Ctrl-C: the run folder and the record are marked ``interrupted``), evaluates a
    finished run with the sweep's protocol, and writes the final record with the state, the
    reason of a failure and the wall time.
 
@@ -39,7 +39,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from egs_bench.errors import Interrupted, interruption_in
+from egs_bench.errors import EgsBenchError, Interrupted, interruption_in, interruption_reason
 from egs_bench.eval.results import SWEEP_RECORD_FILE
 from egs_bench.experiments.spec import STATE_DIR, RunSpec
 from egs_bench.fileio import write_text_atomic
@@ -224,7 +224,7 @@ def execute(spec: RunSpec, redirect: bool = True, evaluate_only: bool = False
         if record["state"] == "done":
             _evaluate(spec, run_dir, record)
     except KeyboardInterrupt as exc:
-        record.update(state="interrupted", reason=str(exc) or "interrupted by SIGINT (Ctrl-C)")
+        record.update(state="interrupted", reason=interruption_reason(exc))
     finally:
         signal.signal(signal.SIGTERM, previous)
     record["finished_utc"] = now_utc()
@@ -275,12 +275,15 @@ def _evaluate(spec: RunSpec, run_dir: Path, record: dict[str, Any]) -> None:
 
 
 def _method_wall_s(run_dir: Path) -> float | None:
-    """The method's own wall time from ``timing.json`` (for a run evaluated later)."""
+    """The method's own wall time from ``timing.json`` (for a run evaluated later; ``None``
+    when the folder has no readable timing)."""
+    from egs_bench.runs.folder import RunFolder
+
     try:
-        value = json.loads((run_dir / "timing.json").read_text()).get("total_wall_s")
-    except (OSError, json.JSONDecodeError, UnicodeDecodeError, AttributeError):
+        timing = RunFolder.open(run_dir).read_timing()
+    except EgsBenchError:
         return None
-    return round(float(value), 3) if isinstance(value, int | float) else None
+    return round(timing.total_wall_s, 3) if timing is not None else None
 
 
 def _status_reason(run_dir: Path) -> str | None:

@@ -56,7 +56,7 @@ import numpy as np
 import yaml
 
 from egs_bench import __version__
-from egs_bench.errors import InputError, OutputError, interruption_in
+from egs_bench.errors import InputError, OutputError, interruption_in, interruption_reason
 from egs_bench.fileio import (
     FileLock,
     lock_is_held,
@@ -550,13 +550,12 @@ class RunFolder:
         Ctrl-C or SIGTERM, see :class:`egs_bench.errors.Interrupted`), then re-raise."""
         try:
             yield self
-        except KeyboardInterrupt as exc:
-            self.mark_interrupted(str(exc) or "interrupted by SIGINT (Ctrl-C)")
-            raise
         except BaseException as exc:
-            interrupt = interruption_in(exc)
-            if interrupt is not None:  # a signal that arrived inside numba (see interruption_in)
-                self.mark_interrupted(str(interrupt) or "interrupted by SIGINT (Ctrl-C)")
+            interrupt = interruption_in(exc)  # also one that surfaced inside numba
+            if interrupt is not None:
+                self.mark_interrupted(interruption_reason(interrupt))
+                if interrupt is exc:
+                    raise
                 raise interrupt from None
             reason = f"{type(exc).__name__}: {exc}".strip()
             self.mark_failed(reason.splitlines()[0] if reason else type(exc).__name__)
