@@ -34,6 +34,7 @@ from typing import Any
 import numpy as np
 
 from egs_bench.errors import InputError, OutputError, UnwritableOutputError
+from egs_bench.interrupts import raise_if_interrupted
 
 #: a staging folder without an owner lock file older than this is considered abandoned
 _STAGING_GRACE_S = 60.0
@@ -281,6 +282,7 @@ def atomic_dir(final: str | Path, *, replace: bool = False) -> Iterator[Path]:
         yield target
         if not target.is_dir():
             raise RuntimeError(f"atomic_dir: nothing was written to {target}")
+        raise_if_interrupted()  # a signal whose exception was swallowed: do not publish
         old = staging / ".replaced"
         if final.exists() or final.is_symlink():
             if final.is_symlink() or not final.is_dir():

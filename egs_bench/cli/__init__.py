@@ -15,10 +15,6 @@ os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 os.environ.setdefault("NUMBA_CACHE_DIR",
                       os.path.join(os.path.expanduser("~"), ".cache", "egs_bench", "numba"))
 
-import signal
-from collections.abc import Iterator
-from contextlib import contextmanager
-
 from rich.console import Console
 
 from egs_bench.cli.app import OPTIONS, app
@@ -30,6 +26,7 @@ from egs_bench.errors import (
     Interrupted,
     interruption_in,
 )
+from egs_bench.interrupts import received_interruption, signals_interrupt
 
 _COMMAND_MODULES = (
     "data_cmds",
@@ -49,28 +46,6 @@ def _register_commands() -> None:
         importlib.import_module(f"egs_bench.cli.{name}")
 
 
-def _raise_interrupted(signum: int, _frame: object) -> None:
-    raise Interrupted(signum)
-
-
-@contextmanager
-def _signals_as_interrupts() -> Iterator[None]:
-    """SIGTERM (a cluster's time limit, ``kill``) and SIGHUP (closed terminal) raise
-    :class:`Interrupted` like Ctrl-C does, so the same clean-up runs: run folders are marked
-    interrupted, staging folders of generators are removed."""
-    previous = {}
-    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
-        try:
-            previous[sig] = signal.signal(sig, _raise_interrupted)
-        except ValueError:  # not the main thread (e.g. called from a test runner's thread)
-            pass
-    try:
-        yield
-    finally:
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
-
-
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the console script; returns the process exit code.
 
@@ -81,12 +56,13 @@ def main(argv: list[str] | None = None) -> int:
     _register_commands()
     err = Console(stderr=True, highlight=False, soft_wrap=True)
     try:
-        with _signals_as_interrupts():
+        with signals_interrupt():
             app(args=argv, standalone_mode=True)
     except SystemExit as exc:
         # typer reports usage errors itself (exit 2) and turns Ctrl-C into exit 130; a signal
-        # we raised as Interrupted is found in the exception chain
-        interrupted = interruption_in(exc)
+        # we raised as Interrupted is found in the exception chain, and one whose exception
+        # was swallowed (see egs_bench.interrupts) is still recorded
+        interrupted = interruption_in(exc) or received_interruption()
         if interrupted is not None:
             return _report_interruption(err, interrupted)
         return int(exc.code or 0) if not isinstance(exc.code, str) else 1
@@ -111,6 +87,8 @@ def main(argv: list[str] | None = None) -> int:
         if OPTIONS.debug:
             raise
         return _internal(err, exc)
+    if (interrupted := received_interruption()) is not None:
+        return _report_interruption(err, interrupted)
     return EXIT_OK
 
 

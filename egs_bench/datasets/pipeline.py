@@ -40,6 +40,7 @@ from egs_bench.datasets.sequence import SequenceWriter
 from egs_bench.errors import ConfigError
 from egs_bench.fileio import atomic_dir
 from egs_bench.geometry import Intrinsics, invert_pose
+from egs_bench.interrupts import raise_if_interrupted
 from egs_bench.outputs import prepare_output
 
 DEFAULT_DEPTH_SCALE = 5000.0  # uint16 PNG units per metre (TUM convention): 0.2 mm, <= 13.1 m
@@ -249,6 +250,7 @@ def generate_sequence(
         bar = tqdm(total=len(t_start), desc=f"generating {out.name}", unit="frame",
                    disable=not progress)
         for t_b in boundaries[1:]:
+            raise_if_interrupted()  # one whose exception was swallowed: stop within a frame
             for cur in sampler.between(prev, int(t_b)):
                 events.append(simulator.step(cur[2], cur[0]))
                 if frame < len(t_start) and t_start[frame] <= prev[0] and cur[0] <= t_end[frame]:

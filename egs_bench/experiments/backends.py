@@ -38,6 +38,7 @@ from egs_bench.experiments.worker import (
     write_record,
 )
 from egs_bench.fileio import write_text_atomic
+from egs_bench.interrupts import raise_if_interrupted, signals_interrupt
 
 TERM_GRACE_S = 30.0
 _THREAD_VARS = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS", "NUMBA_NUM_THREADS",
@@ -159,55 +160,50 @@ def run_local(runs: Sequence[RunSpec], slots: Sequence[Slot], *, force: bool = F
     active: dict[int, tuple[subprocess.Popen, RunSpec, float, Path]] = {}
     outcomes: dict[str, Outcome] = {}
     done_count, total = 0, len(runs)
-    previous = signal.signal(signal.SIGTERM, _raise_interrupt)
-    try:
-        while queue or active:
-            while queue and free:
-                slot_i = free.pop(0)
-                spec = queue.popleft()
-                log = Path(spec.sweep_dir) / STATE_DIR / "logs" / f"{spec.key}.log"
-                log.parent.mkdir(parents=True, exist_ok=True)
-                with open(log, "ab") as f:
-                    proc = subprocess.Popen(worker_command(spec_file(spec), force, retry_failed),
-                                            env={**os.environ, **slots[slot_i].env},
-                                            stdout=f, stderr=subprocess.STDOUT,
-                                            stdin=subprocess.DEVNULL)
-                active[slot_i] = (proc, spec, time.monotonic(), log)
-                say(f"start  {spec.run_id} [{slots[slot_i].name}]")
-            time.sleep(0.2)
-            for slot_i, (proc, spec, t0, log) in list(active.items()):
-                elapsed = time.monotonic() - t0
-                if proc.poll() is None:
-                    if timeout_min is not None and elapsed > 60 * timeout_min:
-                        _stop(proc)
-                        mark_timeout(spec, timeout_min)
-                        outcomes[spec.run_id] = Outcome("timeout",
-                                                        f"time limit {timeout_min:g} min")
+    with signals_interrupt():
+        try:
+            while queue or active:
+                raise_if_interrupted()  # one whose exception was swallowed: start no more
+                while queue and free:
+                    slot_i = free.pop(0)
+                    spec = queue.popleft()
+                    log = Path(spec.sweep_dir) / STATE_DIR / "logs" / f"{spec.key}.log"
+                    log.parent.mkdir(parents=True, exist_ok=True)
+                    with open(log, "ab") as f:
+                        proc = subprocess.Popen(
+                            worker_command(spec_file(spec), force, retry_failed),
+                            env={**os.environ, **slots[slot_i].env}, stdout=f,
+                            stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)
+                    active[slot_i] = (proc, spec, time.monotonic(), log)
+                    say(f"start  {spec.run_id} [{slots[slot_i].name}]")
+                time.sleep(0.2)
+                for slot_i, (proc, spec, t0, log) in list(active.items()):
+                    elapsed = time.monotonic() - t0
+                    if proc.poll() is None:
+                        if timeout_min is not None and elapsed > 60 * timeout_min:
+                            _stop(proc)
+                            mark_timeout(spec, timeout_min)
+                            outcomes[spec.run_id] = Outcome("timeout",
+                                                            f"time limit {timeout_min:g} min")
+                        else:
+                            continue
                     else:
-                        continue
-                else:
-                    outcomes[spec.run_id] = _outcome(proc.returncode, log)
-                del active[slot_i]
-                free.append(slot_i)
-                done_count += 1
-                record = read_record(spec.run_dir) or {}
-                state = record.get("state", outcomes[spec.run_id].action)
-                say(f"[{done_count}/{total}] {state:13s} {spec.run_id} ({elapsed:.1f} s)")
-    except KeyboardInterrupt:
-        for proc, _spec, _, _ in active.values():
-            _stop(proc, wait=False)
-        deadline = time.monotonic() + TERM_GRACE_S
-        for proc, spec, _, _ in active.values():
-            _wait_or_kill(proc, deadline)
-            outcomes[spec.run_id] = Outcome("interrupted")
-        raise
-    finally:
-        signal.signal(signal.SIGTERM, previous)
+                        outcomes[spec.run_id] = _outcome(proc.returncode, log)
+                    del active[slot_i]
+                    free.append(slot_i)
+                    done_count += 1
+                    record = read_record(spec.run_dir) or {}
+                    state = record.get("state", outcomes[spec.run_id].action)
+                    say(f"[{done_count}/{total}] {state:13s} {spec.run_id} ({elapsed:.1f} s)")
+        except KeyboardInterrupt:
+            for proc, _spec, _, _ in active.values():
+                _stop(proc, wait=False)
+            deadline = time.monotonic() + TERM_GRACE_S
+            for proc, spec, _, _ in active.values():
+                _wait_or_kill(proc, deadline)
+                outcomes[spec.run_id] = Outcome("interrupted")
+            raise
     return outcomes
-
-
-def _raise_interrupt(signum, frame) -> None:
-    raise KeyboardInterrupt(f"signal {signal.Signals(signum).name}")
 
 
 def _stop(proc: subprocess.Popen, wait: bool = True) -> None:

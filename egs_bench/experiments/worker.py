@@ -30,7 +30,6 @@ import fcntl
 import json
 import os
 import shutil
-import signal
 import socket
 import sys
 import time
@@ -39,10 +38,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from egs_bench.errors import EgsBenchError, Interrupted, interruption_in, interruption_reason
+from egs_bench.errors import EgsBenchError, interruption_in, interruption_reason
 from egs_bench.eval.results import SWEEP_RECORD_FILE
 from egs_bench.experiments.spec import STATE_DIR, RunSpec
 from egs_bench.fileio import write_text_atomic
+from egs_bench.interrupts import raise_if_interrupted, signals_interrupt
 
 WORKER_LOG = "worker.log"
 # exit codes of the worker process
@@ -181,12 +181,6 @@ def _redirect_output(path: Path) -> None:
     os.close(fd)
 
 
-def _on_sigterm(signum: int, frame: Any) -> None:
-    """SIGTERM (a cluster's time limit, ``kill``) unwinds like Ctrl-C: the method marks its run
-    folder interrupted, the record says ``interrupted``, and the next invocation reruns it."""
-    raise Interrupted(signum)
-
-
 def execute(spec: RunSpec, redirect: bool = True, evaluate_only: bool = False
             ) -> dict[str, Any]:
     """Run the method of ``spec`` into its (prepared) run folder, evaluate it, and return the
@@ -213,7 +207,6 @@ def execute(spec: RunSpec, redirect: bool = True, evaluate_only: bool = False
     what = "evaluation of finished run" if evaluate_only else "sweep run"
     print(f"{now_utc()} {what} {spec.run_id} (hash {spec.config_hash}) pid {os.getpid()}",
           flush=True)
-    previous = signal.signal(signal.SIGTERM, _on_sigterm)
     try:
         if evaluate_only:
             record["state"] = "done"
@@ -223,10 +216,9 @@ def execute(spec: RunSpec, redirect: bool = True, evaluate_only: bool = False
             _run_method(spec, run_dir, record)
         if record["state"] == "done":
             _evaluate(spec, run_dir, record)
+        raise_if_interrupted()  # a signal whose exception was swallowed: evaluate again later
     except KeyboardInterrupt as exc:
         record.update(state="interrupted", reason=interruption_reason(exc))
-    finally:
-        signal.signal(signal.SIGTERM, previous)
     record["finished_utc"] = now_utc()
     write_record(run_dir, record)
     print(f"{now_utc()} finished: {record['state']} {record.get('reason', '')}", flush=True)
@@ -320,7 +312,15 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--retry-failed", action="store_true")
     args = ap.parse_args(argv)
     spec = RunSpec.from_dict(json.loads(args.spec.read_text()))
-    return run_one(spec, args.force, args.retry_failed)
+    # SIGTERM (a cluster's time limit, the sweep pool stopping, ``kill``) unwinds like Ctrl-C:
+    # the method marks its run folder interrupted, the record says so, the next invocation
+    # reruns it. Installed for the whole worker, so that no signal finds the default action
+    # (death with the record still "running") while a record is being written.
+    with signals_interrupt():
+        try:
+            return run_one(spec, args.force, args.retry_failed)
+        except KeyboardInterrupt:  # before the run started or after its record was written
+            return EXIT_INTERRUPTED
 
 
 if __name__ == "__main__":

@@ -67,6 +67,7 @@ from egs_bench.fileio import (
 )
 from egs_bench.geometry import Trajectory, read_tum, write_tum
 from egs_bench.images import read_ldr_image, write_ldr_image
+from egs_bench.interrupts import raise_if_interrupted
 from egs_bench.outputs import prepare_output
 
 RUN_FILE = "run.yaml"
@@ -465,7 +466,9 @@ class RunFolder:
 
     def mark_done(self) -> None:
         """Set the status to ``done`` (call after every output file is written); releases the
-        folder's lock."""
+        folder's lock. Raises :class:`egs_bench.errors.Interrupted` instead if a signal arrived
+        whose exception was swallowed (see :mod:`egs_bench.interrupts`)."""
+        raise_if_interrupted()
         self._finish("done")
 
     def mark_failed(self, reason: str, *, tracking_lost: bool = False) -> None:

@@ -12,6 +12,7 @@ import torch
 
 from egs_bench.errors import InputError
 from egs_bench.geometry import invert_pose
+from egs_bench.interrupts import raise_if_interrupted
 from egs_bench.render import GaussianMap
 from egs_bench.slam.config import SlamConfig
 from egs_bench.slam.crf import make_crf
@@ -161,6 +162,7 @@ class SlamSystem:
         starts = [int(self.seq.exposure(i)[0]) for i in range(n_frames)]
         ends = [int(self.seq.exposure(i)[1]) for i in range(n_frames)]
         for i in range(1, n_frames):
+            raise_if_interrupted()  # one whose exception was swallowed: stop within a frame
             t_frame = time.perf_counter()
             obs = self._obs(i)
             t0, t1 = (int(v) for v in self.seq.exposure(i))

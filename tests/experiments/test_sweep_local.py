@@ -1,6 +1,7 @@
 """Sweeps on the local pool: a 2-method x 2-sequence x 2-seed sweep killed and resumed with the
 same command, stale and conflicting folders never reused, failures, retries and time limits."""
 
+import contextlib
 import json
 import os
 import signal
@@ -97,9 +98,9 @@ def test_sweep_survives_kill_and_resumes(sweep_dir) -> None:
     assert _records(out) == after
 
 
-def test_run_interrupted_after_the_method_finished_is_only_evaluated(sweep_dir) -> None:
-    """SIGTERM after the method marked its folder done (before the evaluation): the next
-    invocation evaluates the kept outputs instead of rerunning the method."""
+def _sweep_stopped_after_the_method(sweep_dir: Path) -> tuple[Path, subprocess.Popen, Path]:
+    """Start a one-run sweep whose method sleeps after marking its folder done; return the
+    sweep file, the launcher and the run folder once the method is done (evaluation pending)."""
     sweep = _write(sweep_dir / "e.yaml", {"methods": ["sweep_fixtures:GOOD"],
                                           "sequences": ["data/sa"], "out": "out"})
     run_dir = sweep_dir / "out/runs/sa/good/seed0"
@@ -110,7 +111,14 @@ def test_run_interrupted_after_the_method_finished_is_only_evaluated(sweep_dir) 
     while time.monotonic() < deadline and not (
             (run_dir / "status.json").is_file()
             and json.loads((run_dir / "status.json").read_text())["state"] == "done"):
-        time.sleep(0.1)
+        time.sleep(0.05)
+    return sweep, proc, run_dir
+
+
+def test_run_interrupted_after_the_method_finished_is_only_evaluated(sweep_dir) -> None:
+    """SIGTERM after the method marked its folder done (before the evaluation): the next
+    invocation evaluates the kept outputs instead of rerunning the method."""
+    sweep, proc, run_dir = _sweep_stopped_after_the_method(sweep_dir)
     os.killpg(proc.pid, signal.SIGTERM)
     proc.wait(timeout=60)
     record = json.loads((run_dir / "sweep.json").read_text())
@@ -126,6 +134,21 @@ def test_run_interrupted_after_the_method_finished_is_only_evaluated(sweep_dir) 
     record = json.loads((run_dir / "sweep.json").read_text())
     assert record["state"] == "done" and record["evaluated"] and record["run_wall_s"] > 0
     assert "evaluation of finished run sa/good/seed0" in (run_dir / "worker.log").read_text()
+
+
+def test_repeated_sigterms_do_not_leave_the_run_recorded_running(sweep_dir) -> None:
+    """``kill`` of the process group, then the pool stopping its workers: a worker gets several
+    SIGTERMs. One arriving while the first was being recorded killed the worker with its record
+    still ``running`` (this burst caught the old code in 1 of 6 tries; the deterministic check
+    is in test_sweep_spec.py)."""
+    _, proc, run_dir = _sweep_stopped_after_the_method(sweep_dir)
+    worker_pid = json.loads((run_dir / "sweep.json").read_text())["pid"]
+    for _ in range(40):
+        with contextlib.suppress(ProcessLookupError):
+            os.kill(worker_pid, signal.SIGTERM)
+        time.sleep(0.0005)
+    proc.wait(timeout=60)
+    assert json.loads((run_dir / "sweep.json").read_text())["state"] == "interrupted"
 
 
 def test_sweep_failures_conflicts_and_retries(sweep_dir, monkeypatch) -> None:

@@ -177,3 +177,36 @@ def test_decide_from_the_run_folder(tmp_path, seqs) -> None:
     assert decide(run, retry_failed=True).action == RUN
     assert state({**ours, "state": "done"}, {"state": "done"}) == SKIP
     assert decide(run, force=True).action == RUN
+
+
+def test_a_repeated_sigterm_during_the_interruption_record_is_ignored(tmp_path, seqs,
+                                                                      monkeypatch) -> None:
+    """The first SIGTERM arrives during the evaluation, a second one just as the worker writes
+    its ``interrupted`` record (a process-group kill followed by the pool's own SIGTERM): the
+    record must still be written, saying ``interrupted``."""
+    import json
+    import os
+    import signal
+
+    from egs_bench.experiments import worker
+    from egs_bench.interrupts import signals_interrupt
+
+    def sigterm_self(*_args, **_kwargs) -> None:
+        os.kill(os.getpid(), signal.SIGTERM)
+
+    write_record = worker.write_record
+
+    def repeat_then_write(run_dir, record) -> None:
+        if record["state"] == "interrupted":
+            sigterm_self()
+        write_record(run_dir, record)
+
+    monkeypatch.setattr(worker, "_evaluate", sigterm_self)
+    monkeypatch.setattr(worker, "write_record", repeat_then_write)
+    spec = parse_sweep({"methods": ["sweep_fixtures:GOOD"], "sequences": ["a"]}, "s.yaml")
+    run = expand(spec, seqs, tmp_path)[0]
+    with signals_interrupt():
+        record = worker.execute(run, redirect=False)
+    assert record["state"] == "interrupted"
+    saved = json.loads((tmp_path / "runs" / run.run_id / "sweep.json").read_text())
+    assert saved["state"] == "interrupted" and saved["reason"] == "interrupted by SIGTERM"

@@ -1,0 +1,103 @@
+"""Signals are never lost: one whose exception Python swallows (it ran inside a ``__del__`` or a
+weakref callback) still stops the work before anything is published, and a repeated signal does
+not abort the clean-up of the first (both seen as flaky CI failures: a SIGTERM'd generator
+exited 0, a sweep run stayed "running")."""
+
+from __future__ import annotations
+
+import os
+import signal
+from pathlib import Path
+
+import pytest
+
+from egs_bench import interrupts
+from egs_bench.cli import main
+from egs_bench.errors import Interrupted
+from egs_bench.fileio import atomic_dir
+from egs_bench.interrupts import raise_if_interrupted, received_interruption, signals_interrupt
+from egs_bench.runs.folder import RunFolder
+
+
+class _SignalsInDel:
+    """Sends SIGTERM to this process from ``__del__``: the handler runs inside ``__del__``,
+    where Python prints and drops its exception (as it does in a weakref callback run by the
+    garbage collector)."""
+
+    def __del__(self) -> None:
+        os.kill(os.getpid(), signal.SIGTERM)
+
+
+def _swallowed_sigterm() -> None:
+    _SignalsInDel()  # created and collected at once; no exception reaches the caller
+
+
+def test_a_swallowed_signal_is_recorded_and_raised_at_the_next_check() -> None:
+    with signals_interrupt():
+        _swallowed_sigterm()
+        assert received_interruption() is not None
+        with pytest.raises(Interrupted) as info:
+            raise_if_interrupted()
+    assert info.value.exit_code == 128 + signal.SIGTERM
+    raise_if_interrupted()  # outside a block there is nothing to raise
+
+
+def test_a_swallowed_signal_leaves_no_output_published(tmp_path: Path) -> None:
+    out = tmp_path / "seq"
+    with signals_interrupt(), pytest.raises(Interrupted), atomic_dir(out) as tmp:
+        tmp.mkdir()
+        (tmp / "frames.txt").write_text("partial\n")
+        _swallowed_sigterm()
+    assert list(tmp_path.iterdir()) == []  # neither the output nor a staging folder
+
+
+def test_a_swallowed_signal_marks_the_run_interrupted_not_done(tmp_path: Path) -> None:
+    run = RunFolder.create(tmp_path / "r", method="m", sequence_name="s", sequence_path=tmp_path)
+    with signals_interrupt(), pytest.raises(Interrupted), run.failure_guard():
+        _swallowed_sigterm()
+        run.mark_done()
+    assert run.read_status().state == "interrupted"
+
+
+def test_a_generator_with_a_swallowed_signal_exits_as_interrupted(tmp_path: Path, capsys,
+                                                                  monkeypatch) -> None:
+    from egs_bench.datasets.sequence import SequenceWriter
+
+    add_frame = SequenceWriter.add_frame
+
+    def add_frame_then_signal(self, *args, **kwargs):
+        add_frame(self, *args, **kwargs)
+        _swallowed_sigterm()
+
+    monkeypatch.setattr(SequenceWriter, "add_frame", add_frame_then_signal)
+    code = main(["make-synthetic", "--scene", "office", "--out", str(tmp_path / "seq"),
+                 "--frames", "6", "--width", "32", "--height", "24", "--no-progress"])
+    assert code == 128 + signal.SIGTERM, capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_repeated_signal_does_not_abort_the_clean_up_of_the_first() -> None:
+    cleaned = False
+    with signals_interrupt(), pytest.raises(Interrupted):
+        try:
+            os.kill(os.getpid(), signal.SIGTERM)
+        finally:
+            os.kill(os.getpid(), signal.SIGTERM)  # e.g. a pool stopping its workers
+            cleaned = True
+    assert cleaned
+
+
+def test_a_repeat_after_the_grace_period_raises_again(monkeypatch) -> None:
+    monkeypatch.setattr(interrupts, "REPEAT_GRACE_S", 0.0)
+    with signals_interrupt():
+        with pytest.raises(Interrupted):
+            os.kill(os.getpid(), signal.SIGTERM)
+        with pytest.raises(Interrupted):
+            os.kill(os.getpid(), signal.SIGTERM)
+
+
+def test_handlers_are_restored_after_the_block() -> None:
+    before = signal.getsignal(signal.SIGTERM)
+    with signals_interrupt():
+        assert signal.getsignal(signal.SIGTERM) is not before
+    assert signal.getsignal(signal.SIGTERM) is before
