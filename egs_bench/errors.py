@@ -97,6 +97,14 @@ def interruption_in(exc: BaseException | None) -> KeyboardInterrupt | None:
     return None
 
 
+def reraise_interruption(exc: BaseException) -> None:
+    """Raise the Ctrl-C / SIGTERM behind ``exc`` if there is one (see :func:`interruption_in`);
+    for ``except Exception`` blocks that record a failure and go on, which must not record a
+    signal that surfaced inside numba as a failure."""
+    if (interrupt := interruption_in(exc)) is not None and interrupt is not exc:
+        raise interrupt from None
+
+
 def interruption_reason(exc: KeyboardInterrupt) -> str:
     """The one-line reason a run records for an interruption."""
     return str(exc) or "interrupted by SIGINT (Ctrl-C)"

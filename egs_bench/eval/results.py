@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from egs_bench.errors import EgsBenchError, InputError
+from egs_bench.errors import EgsBenchError, InputError, reraise_interruption
 from egs_bench.eval.protocols import DEFAULT_PROTOCOL
 from egs_bench.runs.folder import (
     CONFIG_FILE,
@@ -294,6 +294,7 @@ def read_run_result(path: Path, root: Path, protocol: str = DEFAULT_PROTOCOL,
     except EgsBenchError as exc:
         return RunResult(**base, status="broken", reason=str(exc))
     except Exception as exc:  # noqa: BLE001 (a bad folder must become a footnote, not an abort)
+        reraise_interruption(exc)
         return RunResult(**base, status="broken",
                          reason=f"{path}: evaluation failed ({type(exc).__name__}: {exc})")
     result = RunResult(**base, status="ok", values=values, frames_processed=done,

@@ -38,7 +38,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from egs_bench.errors import EgsBenchError, interruption_in, interruption_reason
+from egs_bench.errors import EgsBenchError, interruption_reason, reraise_interruption
 from egs_bench.eval.results import SWEEP_RECORD_FILE
 from egs_bench.experiments.spec import STATE_DIR, RunSpec
 from egs_bench.fileio import write_text_atomic
@@ -243,8 +243,7 @@ def _run_method(spec: RunSpec, run_dir: Path, record: dict[str, Any]) -> None:
         if record["state"] != "done":
             record["reason"] = _status_reason(run_dir) or "the method did not mark the run done"
     except Exception as exc:  # noqa: BLE001 (any failure of one run is recorded, not raised)
-        if (interrupt := interruption_in(exc)) is not None:  # a signal inside numba
-            raise interrupt from None
+        reraise_interruption(exc)
         record.update(state=run_state(run_dir) if run_state(run_dir) == "tracking_lost"
                       else "failed", reason=f"{type(exc).__name__}: {exc}".splitlines()[0])
     finally:
@@ -261,6 +260,7 @@ def _evaluate(spec: RunSpec, run_dir: Path, record: dict[str, Any]) -> None:
         evaluate_run(run_dir, spec.protocol, write=True)
         record["evaluated"] = spec.protocol
     except Exception as exc:  # noqa: BLE001
+        reraise_interruption(exc)
         record["evaluation_error"] = f"{type(exc).__name__}: {exc}".splitlines()[0]
     finally:
         record["eval_wall_s"] = round(time.perf_counter() - t1, 3)

@@ -243,3 +243,23 @@ def test_leaderboard_latex_compiles_without_overflow(tmp_path) -> None:
     natural = leaderboard(root, "latex", evaluate_missing=False, width="natural")
     log = compile_latex([natural], tmp_path / "doc2", twocolumn=True)
     assert "Overfull \\hbox" in log  # the check can fail: the unscaled table does overflow
+
+
+def test_a_signal_surfacing_inside_an_evaluation_stops_the_leaderboard(runs, monkeypatch) -> None:
+    """A SIGTERM that arrives while numba evaluates a run surfaces as a ``SystemError`` whose
+    cause is the interruption; it must stop the command, not become a "broken" footnote."""
+    import signal
+
+    from egs_bench.errors import Interrupted
+    from egs_bench.eval import results
+
+    def interrupted_in_numba(*_args, **_kwargs):
+        try:
+            raise Interrupted(signal.SIGTERM)
+        except Interrupted as exc:
+            raise SystemError("CPUDispatcher(<function f>) returned a result with an exception "
+                              "set") from exc
+
+    monkeypatch.setattr(results, "_load_metrics", interrupted_in_numba)
+    with pytest.raises(Interrupted):
+        leaderboard(runs, "md")
