@@ -248,18 +248,11 @@ def test_leaderboard_latex_compiles_without_overflow(tmp_path) -> None:
 def test_a_signal_surfacing_inside_an_evaluation_stops_the_leaderboard(runs, monkeypatch) -> None:
     """A SIGTERM that arrives while numba evaluates a run surfaces as a ``SystemError`` whose
     cause is the interruption; it must stop the command, not become a "broken" footnote."""
-    import signal
+    from interrupt_helpers import raise_sigterm_as_numba_does
 
     from egs_bench.errors import Interrupted
     from egs_bench.eval import results
 
-    def interrupted_in_numba(*_args, **_kwargs):
-        try:
-            raise Interrupted(signal.SIGTERM)
-        except Interrupted as exc:
-            raise SystemError("CPUDispatcher(<function f>) returned a result with an exception "
-                              "set") from exc
-
-    monkeypatch.setattr(results, "_load_metrics", interrupted_in_numba)
+    monkeypatch.setattr(results, "_load_metrics", raise_sigterm_as_numba_does)
     with pytest.raises(Interrupted):
         leaderboard(runs, "md")

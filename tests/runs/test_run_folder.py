@@ -78,17 +78,13 @@ def test_signal_surfacing_as_a_numba_system_error_marks_the_run_interrupted(tmp_
     ``SystemError: CPUDispatcher(...) returned a result with an exception set``, the
     interruption being its cause, and the run read ``failed`` (a sweep keeps those). It must
     read ``interrupted`` (a sweep reruns those), and the interruption must propagate."""
-    import signal
+    from interrupt_helpers import raise_sigterm_as_numba_does
 
     from egs_bench.errors import Interrupted
 
     run = RunFolder.create(tmp_path / "r", method="m", sequence_name="s", sequence_path=tmp_path)
     with pytest.raises(Interrupted) as info, run.failure_guard():
-        try:
-            raise Interrupted(signal.SIGTERM)
-        except Interrupted as exc:
-            raise SystemError("CPUDispatcher(<function bin_tiles at 0x7f>) returned a result "
-                              "with an exception set") from exc
+        raise_sigterm_as_numba_does()
     assert info.value.exit_code == 143
     status = run.read_status()
     assert status.state == "interrupted" and status.reason == "interrupted by SIGTERM"

@@ -190,17 +190,11 @@ def test_a_signal_surfacing_inside_numba_exits_as_an_interruption(monkeypatch, c
     """numba turns a signal handler's exception into ``SystemError: ... returned a result with
     an exception set`` (the interruption as its cause): the CLI must exit 128 + 15 with one
     line, not report an internal error (70)."""
+    from interrupt_helpers import raise_sigterm_as_numba_does
+
     from egs_bench.datasets import synthetic
-    from egs_bench.errors import Interrupted
 
-    def interrupted_inside_numba() -> dict:
-        try:
-            raise Interrupted(signal.SIGTERM)
-        except Interrupted as exc:
-            raise SystemError("CPUDispatcher(<function bin_tiles at 0x7f>) returned a result "
-                              "with an exception set") from exc
-
-    monkeypatch.setattr(synthetic, "list_scenes", interrupted_inside_numba)
+    monkeypatch.setattr(synthetic, "list_scenes", raise_sigterm_as_numba_does)
     code, err = _cli(capsys, "list-scenes")
     assert code == 143, err
     assert err.strip() == "interrupted by SIGTERM"
