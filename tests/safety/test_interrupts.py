@@ -101,3 +101,32 @@ def test_handlers_are_restored_after_the_block() -> None:
     with signals_interrupt():
         assert signal.getsignal(signal.SIGTERM) is not before
     assert signal.getsignal(signal.SIGTERM) is before
+
+
+def test_a_run_with_a_swallowed_signal_stops_at_the_next_frame(tmp_path: Path, room_sequence,
+                                                               capsys, monkeypatch) -> None:
+    """The SLAM loop checks once per frame: a signal swallowed while frame 1 was tracked stops
+    the run before frame 2, marked interrupted with the trajectory of what it processed."""
+    from safety_helpers import QUICK_RUN
+
+    from egs_bench.slam import system
+
+    track_frame = system.track_frame
+    tracked: list[int] = []
+
+    def track_then_signal(*args, **kwargs):
+        result = track_frame(*args, **kwargs)
+        tracked.append(result.state.index)
+        if len(tracked) == 1:
+            _swallowed_sigterm()
+        return result
+
+    monkeypatch.setattr(system, "track_frame", track_then_signal)
+    out = tmp_path / "run"
+    code = main(["run", "--method", "monogs", "--seq", str(room_sequence), "--out", str(out),
+                 *QUICK_RUN])
+    assert code == 128 + signal.SIGTERM, capsys.readouterr().err
+    assert tracked == [1]
+    status = RunFolder.open(out).read_status()
+    assert status.state == "interrupted" and status.reason == "interrupted by SIGTERM"
+    assert len(RunFolder.open(out).read_trajectory()) == 2  # frames 0 and 1
