@@ -9,7 +9,8 @@ Two ways a plain "raise in the handler" loses a signal, both seen in CI runs:
   ignored" and dropped, and the process went on to finish and exit 0. So the first signal is
   also *recorded*; :func:`raise_if_interrupted` raises it again, and is called before any
   output is committed as complete (:func:`egs_bench.fileio.atomic_dir`,
-  :meth:`egs_bench.runs.folder.RunFolder.mark_done`) and once per frame by the long loops.
+  :meth:`egs_bench.runs.folder.RunFolder.mark_done`) and by the long loops (each frame, each
+  mapping iteration).
 * A second SIGTERM (``kill`` of a process group, then a sweep pool stopping its workers) landed
   in the ``except`` block that was recording the first one, and the run stayed "running". A
   repeat within :data:`REPEAT_GRACE_S` of the raised one is therefore ignored: the clean-up it

@@ -16,6 +16,7 @@ import numpy as np
 import torch
 
 from egs_bench.geometry.lie import se3_exp, twist_gradient
+from egs_bench.interrupts import raise_if_interrupted
 from egs_bench.render import GaussianMap
 from egs_bench.slam.config import SlamConfig
 from egs_bench.slam.crf import CameraResponse
@@ -131,6 +132,7 @@ class Mapper:
         loss_val = float("nan")
         prune_due = False
         for it in range(iterations):
+            raise_if_interrupted()  # a swallowed signal: map initialisation alone takes minutes
             if report is not None and it % report_every == 0:
                 report(it, iterations)
             views = self._pick_views(window, all_keyframes)
@@ -231,6 +233,7 @@ class Mapper:
         like = self.gmap.means
         loss_val = float("nan")
         for _ in range(iterations):
+            raise_if_interrupted()
             k = keyframes[int(self.rng.integers(len(keyframes)))]
             st = states[k]
             views = exposure_path(st.pose0_cw, st.pose1_cw, observations[k].fractions)[0]

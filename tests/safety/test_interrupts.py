@@ -130,3 +130,29 @@ def test_a_run_with_a_swallowed_signal_stops_at_the_next_frame(tmp_path: Path, r
     status = RunFolder.open(out).read_status()
     assert status.state == "interrupted" and status.reason == "interrupted by SIGTERM"
     assert len(RunFolder.open(out).read_trajectory()) == 2  # frames 0 and 1
+
+
+def test_a_signal_swallowed_in_map_initialisation_stops_it(tmp_path: Path, room_sequence,
+                                                           capsys, monkeypatch) -> None:
+    """Map initialisation runs minutes without reaching the frame loop: it checks every
+    iteration, so a swallowed signal stops it at the next one."""
+    from safety_helpers import QUICK_RUN
+
+    from egs_bench.slam import mapper
+
+    render_views = mapper.render_views
+    calls: list[int] = []
+
+    def render_then_signal(*args, **kwargs):
+        calls.append(1)
+        if len(calls) == 1:
+            _swallowed_sigterm()
+        return render_views(*args, **kwargs)
+
+    monkeypatch.setattr(mapper, "render_views", render_then_signal)
+    out = tmp_path / "run"
+    code = main(["run", "--method", "monogs", "--seq", str(room_sequence), "--out", str(out),
+                 *QUICK_RUN, "--set", "init_iters=1000"])
+    assert code == 128 + signal.SIGTERM, capsys.readouterr().err
+    assert len(calls) == 1
+    assert RunFolder.open(out).read_status().state == "interrupted"
