@@ -10,8 +10,9 @@ asks for (ATE egs / monogs, PSNR egs - monogs).
         [--jobs J] [--out bench_out/slam] [--set KEY=VALUE ...] [--unblurred SEQ ...]
         [--seed S [--seed S2 ...]]
 
-With several ``--seed`` the table holds the mean over the seeds and the standard deviation
-(``*_std`` columns); the ratios use the means.
+With several ``--seed`` the table holds the mean over the seeds that finished and the standard
+deviation (``*_std`` columns); ``seeds`` says how many finished of how many were asked for and
+``error`` names each unfinished seed with its state. The ratios use the means.
 
 The tables of docs/notes/slam.md and BENCHMARKS.md were made with
 
@@ -100,7 +101,8 @@ def run_grid(args: argparse.Namespace) -> pd.DataFrame:
 
 def summarise_seeds(runs: pd.DataFrame) -> pd.DataFrame:
     """One row per (sequence, method) in first-seen order: the mean of every metric over the
-    seeds, plus ``<metric>_std`` columns and the number of seeds when there are several."""
+    seeds that finished, ``<metric>_std`` columns, ``seeds`` = how many finished of how many
+    asked, and ``error`` naming each seed that has not finished (with its state)."""
     metrics = [c for c in ("ate_cm", "psnr_db", "ssim", "fps") if c in runs]
     if runs["seed"].nunique() <= 1 or not metrics:
         return runs.drop(columns="seed")
@@ -110,10 +112,20 @@ def summarise_seeds(runs: pd.DataFrame) -> pd.DataFrame:
     for c in ("ate_cm", "psnr_db"):
         if c in metrics:
             out[f"{c}_std"] = grouped[c].std()
-    out["seeds"] = grouped["seed"].count()
+    finished = runs["ate_cm"].notna() if "ate_cm" in runs else pd.Series(False, runs.index)
+    out["seeds"] = [f"{int(finished[g.index].sum())}/{len(g)}" for _, g in grouped]
     if "error" in runs:
-        out["error"] = grouped["error"].first()
+        out["error"] = ["; ".join(f"seed {s}: {e}" for s, e in zip(g["seed"], g["error"],
+                                                                    strict=True)
+                                  if isinstance(e, str)) or None for _, g in grouped]
     return out.reset_index()
+
+
+def finished_seeds(runs: pd.DataFrame) -> list[int]:
+    """The seeds with at least one finished run (for the summary line)."""
+    if "ate_cm" not in runs:
+        return []
+    return sorted(int(s) for s in runs.loc[runs["ate_cm"].notna(), "seed"].unique())
 
 
 def print_ratios(df: pd.DataFrame, unblurred: list[str], setting: str) -> None:
@@ -179,8 +191,9 @@ def main() -> None:
     df = summarise_seeds(runs)
     write_text_atomic(args.out / "accuracy.csv", df.to_csv(index=False))
     print(df.to_markdown(index=False, floatfmt=".3f"))
-    seeds = ", ".join(str(s) for s in args.seeds)
-    print_ratios(df, args.unblurred, f"preset {args.preset}, seed(s) {seeds}")
+    seeds = ", ".join(str(s) for s in finished_seeds(runs)) or "none"
+    print_ratios(df, args.unblurred, f"preset {args.preset}, finished seed(s) {seeds}; "
+                                     "per row see `seeds`")
     write_text_atomic(args.out / "accuracy.md", df.to_markdown(index=False, floatfmt=".3f") + "\n")
 
 

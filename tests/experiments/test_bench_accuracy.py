@@ -46,3 +46,29 @@ def test_status_run_and_resume(tmp_path: Path, monkeypatch) -> None:
     assert again.returncode == 0, again.stderr
     assert "2 runs, 2 in this invocation, 0 to run" in again.stdout
     assert (tmp_path / "out/runs.csv").read_text() == first_csv
+
+
+def test_seed_summary_counts_only_finished_runs() -> None:
+    """With several seeds, a row's mean is over the finished seeds and says how many of how
+    many finished; every unfinished seed is named with its state."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("bench_slam_accuracy", SCRIPT)
+    assert spec is not None and spec.loader is not None
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    runs = pd.DataFrame([
+        {"sequence": "s", "method": "egs", "seed": 0, "ate_cm": 2.0, "psnr_db": 30.0},
+        {"sequence": "s", "method": "egs", "seed": 1, "ate_cm": 4.0, "psnr_db": 28.0},
+        {"sequence": "s", "method": "egs", "seed": 2, "error": "running: status is 'running'"},
+        {"sequence": "s", "method": "monogs", "seed": 0, "ate_cm": 5.0, "psnr_db": 26.0},
+        {"sequence": "s", "method": "monogs", "seed": 1, "error": "pending: not started"},
+        {"sequence": "s", "method": "monogs", "seed": 2, "error": "pending: not started"},
+    ])
+    table = bench.summarise_seeds(runs).set_index("method")
+    assert table.loc["egs", "ate_cm"] == 3.0 and table.loc["egs", "seeds"] == "2/3"
+    assert table.loc["egs", "error"] == "seed 2: running: status is 'running'"
+    assert table.loc["monogs", "seeds"] == "1/3"
+    assert table.loc["monogs", "error"] == ("seed 1: pending: not started; "
+                                            "seed 2: pending: not started")
+    assert bench.finished_seeds(runs) == [0, 1]
