@@ -101,7 +101,7 @@ def reraise_interruption(exc: BaseException) -> None:
     """Raise the Ctrl-C / SIGTERM behind ``exc`` if there is one (see :func:`interruption_in`);
     for ``except Exception`` blocks that record a failure and go on, which must not record a
     signal that surfaced inside numba as a failure."""
-    if (interrupt := interruption_in(exc)) is not None and interrupt is not exc:
+    if (interrupt := interruption_in(exc)) is not None:
         raise interrupt from None
 
 
