@@ -48,9 +48,10 @@ def test_status_run_and_resume(tmp_path: Path, monkeypatch) -> None:
     assert (tmp_path / "out/runs.csv").read_text() == first_csv
 
 
-def test_seed_summary_counts_only_finished_runs() -> None:
+def test_seed_summary_counts_only_finished_runs(capsys) -> None:
     """With several seeds, a row's mean is over the finished seeds and says how many of how
-    many finished; every unfinished seed is named with its state."""
+    many finished; every unfinished seed is named with its state; the egs/monogs line says
+    how many seeds each side's mean has."""
     import importlib.util
 
     spec = importlib.util.spec_from_file_location("bench_slam_accuracy", SCRIPT)
@@ -71,4 +72,9 @@ def test_seed_summary_counts_only_finished_runs() -> None:
     assert table.loc["monogs", "seeds"] == "1/3"
     assert table.loc["monogs", "error"] == ("seed 1: pending: not started; "
                                             "seed 2: pending: not started")
-    assert bench.finished_seeds(runs) == [0, 1]
+    bench.print_ratios(table.reset_index(), [], "preset cpu")
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0] == ("s: ATE(egs)/ATE(monogs) = 0.600, PSNR(egs) - PSNR(monogs) = +3.00 dB "
+                        "(seeds finished: egs 2/3, monogs 1/3)")
+    assert lines[1] == ("mean over the blurred sequences (s): ATE ratio 0.600, "
+                        "PSNR gain +3.00 dB (preset cpu)")
