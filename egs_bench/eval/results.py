@@ -283,7 +283,8 @@ def read_run_result(path: Path, root: Path, protocol: str = DEFAULT_PROTOCOL,
         return RunResult(**base, status="tracking_lost" if status.tracking_lost else "failed",
                          reason=status.reason or "no reason given")
     if status.state != "done":
-        return RunResult(**base, status="running", reason=f"status is {status.state!r}")
+        at = f" at {status.progress_text()}" if status.progress else ""
+        return RunResult(**base, status="running", reason=f"status is {status.state!r}{at}")
     try:
         data = _load_metrics(run, protocol, evaluate_missing)
         if data is None:

@@ -33,6 +33,7 @@ from egs_bench.experiments.worker import (
     run_state,
 )
 from egs_bench.fileio import write_text_atomic
+from egs_bench.runs.folder import RunFolder
 
 BACKENDS = ("local", "slurm")
 SUMMARY_CSV = "sweep_summary.csv"
@@ -91,6 +92,14 @@ def _metrics(run_dir: Path) -> tuple[float, float]:
     return 100.0 * values.get("ate", math.nan), values.get("psnr", math.nan)
 
 
+def _progress(run_dir: Path) -> str:
+    """How far a run's method got (``"frame 123/300"``), or ``""`` when it does not say."""
+    try:
+        return RunFolder.open(run_dir).read_status().progress_text()
+    except (OSError, ValueError, EgsBenchError):
+        return ""
+
+
 def run_row(spec: RunSpec, outcome: Outcome | None = None, invoked: bool = True
             ) -> dict[str, Any]:
     """One summary row: identity, state, this invocation's action, wall time, reason, ATE/PSNR.
@@ -114,6 +123,8 @@ def run_row(spec: RunSpec, outcome: Outcome | None = None, invoked: bool = True
             state, reason = "interrupted", "the worker died before it finished (killed?)"
         elif state == "running":
             reason = f"pid {record.get('pid')} on {record.get('host')}"
+            at = _progress(run_dir)
+            reason += f", at {at}" if at else ""
         folder_state = run_state(run_dir)
         if state in ("done", "failed", "tracking_lost") and folder_state is not None:
             state = folder_state

@@ -8,7 +8,8 @@ Every method run writes one folder; ``egs-bench eval`` reads it and adds ``metri
                             ``artifacts`` (method-specific files, e.g. ``map.ply``)
     <run>/config.yaml       the method's fully resolved configuration
     <run>/status.json       {"state": "running"|"done"|"failed"|"interrupted", "reason",
-                             "tracking_lost", "pid", "host", "heartbeat_utc", ...}
+                             "tracking_lost", "pid", "host", "heartbeat_utc",
+                             optional "progress": {"done": frames processed, "total"}}
     <run>/trajectory.txt    estimated T_wc, TUM format, one pose per frame at its exposure end
     <run>/keyframes.txt     frame indices (0-based) of the keyframes, one per line
     <run>/renders/%06d.png  LDR sRGB renders from the estimated poses, named by frame index
@@ -48,7 +49,7 @@ import re
 import socket
 import threading
 from collections.abc import Iterator, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -110,6 +111,9 @@ class RunStatus:
         updated_utc: ISO-8601 UTC time of the last status change.
         pid, host: the process that wrote the run.
         heartbeat_utc: last sign of life of that process while running.
+        progress: ``(done, total)`` frames the method had processed at the last status write
+            (a heartbeat while running, the final state when it stopped), or None when the
+            method does not report progress.
     """
 
     state: str
@@ -119,6 +123,11 @@ class RunStatus:
     pid: int | None = None
     host: str | None = None
     heartbeat_utc: str | None = None
+    progress: tuple[int, int] | None = None
+
+    def progress_text(self) -> str:
+        """``"frame 123/300"``, or ``""`` without progress."""
+        return f"frame {self.progress[0]}/{self.progress[1]}" if self.progress else ""
 
 
 @dataclass(frozen=True)
@@ -152,6 +161,19 @@ def _parse_utc(text: str | None) -> _dt.datetime | None:
         return _dt.datetime.strptime(text, "%Y-%m-%dT%H:%M:%SZ").replace(tzinfo=_dt.UTC)
     except ValueError:
         return None
+
+
+def _read_progress(path: Path, value: Any) -> tuple[int, int] | None:
+    """``status.json``'s optional ``progress`` as ``(done, total)``."""
+    if value is None:
+        return None
+    ok = isinstance(value, dict) and all(
+        isinstance(value.get(k), int) and not isinstance(value.get(k), bool) and value[k] >= 0
+        for k in ("done", "total"))
+    if not ok or value["done"] > value["total"]:
+        raise InputError(path, "'progress' must be {\"done\": n, \"total\": m} with "
+                               f"0 <= n <= m, found {value!r}")
+    return int(value["done"]), int(value["total"])
 
 
 def _read_json(path: Path) -> dict[str, Any]:
@@ -207,6 +229,7 @@ class RunFolder:
         self._started_utc = ""
         self._beat_stop = threading.Event()
         self._beat_thread: threading.Thread | None = None
+        self._progress: tuple[int, int] | None = None
 
     # ---------------------------------------------------------------- creation / opening
     @classmethod
@@ -420,7 +443,7 @@ class RunFolder:
         now = _now_utc()
         if state != self._state:
             self._started_utc = now
-        data = {
+        data: dict[str, Any] = {
             "state": state,
             "reason": reason,
             "tracking_lost": tracking_lost,
@@ -429,6 +452,8 @@ class RunFolder:
             "host": socket.gethostname(),
             "heartbeat_utc": now,
         }
+        if self._progress is not None:
+            data["progress"] = {"done": self._progress[0], "total": self._progress[1]}
         write_text_atomic(self.path / STATUS_FILE, json.dumps(data, indent=2) + "\n")
         self._state = state
 
@@ -452,6 +477,12 @@ class RunFolder:
                     self._write_status("running")
                 except (OSError, InputError, OutputError):
                     return  # the folder went away: nothing left to keep alive
+
+    def set_progress(self, done: int, total: int) -> None:
+        """Record that ``done`` of ``total`` frames are processed. Nothing is written now: the
+        next heartbeat (at most :data:`HEARTBEAT_S` later) or the final status carries it, so
+        a per-frame call costs no file write."""
+        self._progress = (int(done), int(total))
 
     def mark_running(self) -> None:
         """Set the status to ``running``; while running, a background thread refreshes the
@@ -512,6 +543,7 @@ class RunFolder:
             raise InputError(path, f"'pid' must be an integer, found {pid!r}")
         if host is not None and not isinstance(host, str):
             raise InputError(path, f"'host' must be text, found {host!r}")
+        progress = _read_progress(path, data.get("progress"))
         status = RunStatus(
             state=state,
             reason=reason,
@@ -520,12 +552,12 @@ class RunFolder:
             pid=pid,
             host=host,
             heartbeat_utc=str(data["heartbeat_utc"]) if data.get("heartbeat_utc") else None,
+            progress=progress,
         )
         if state == "running":
             gone = self._writer_gone(status)
             if gone:
-                return RunStatus("interrupted", gone, False, status.updated_utc, pid, host,
-                                 status.heartbeat_utc)
+                return replace(status, state="interrupted", reason=gone, tracking_lost=False)
         return status
 
     def _writer_gone(self, status: RunStatus) -> str | None:

@@ -75,8 +75,11 @@ def run_slam(seq: Sequence, out: str | Path, *, method_name: str, config: SlamCo
         bar = tqdm(total=n, desc=f"{method_name} {seq.name}", unit="frame", disable=not progress)
         t_start = time.perf_counter()
 
+        run.set_progress(0, n)
+
         def on_frame(rep: FrameReport) -> None:
             elapsed = time.perf_counter() - t_start
+            run.set_progress(rep.index + 1, n)
             bar.update(1)
             bar.set_postfix(loss=f"{rep.loss:.4f}", fps=f"{bar.n / max(elapsed, 1e-9):.2f}",
                             gaussians=len(system.gmap))

@@ -210,3 +210,28 @@ def test_a_repeated_sigterm_during_the_interruption_record_is_ignored(tmp_path, 
     assert record["state"] == "interrupted"
     saved = json.loads((tmp_path / "runs" / run.run_id / "sweep.json").read_text())
     assert saved["state"] == "interrupted" and saved["reason"] == "interrupted by SIGTERM"
+
+
+def test_a_running_row_says_how_far_the_method_got(tmp_path, seqs) -> None:
+    """A long run's summary row names its worker and the frame its method has reached (from
+    the run's status heartbeat), so a sweep status shows progress, not only 'running'."""
+    import json
+
+    from egs_bench.experiments.sweep import run_row
+    from egs_bench.experiments.worker import run_lock
+    from egs_bench.runs.folder import RunFolder
+
+    spec = parse_sweep({"methods": ["sweep_fixtures:GOOD"], "sequences": ["a"]}, "s.yaml")
+    run = expand(spec, seqs, tmp_path)[0]
+    folder = RunFolder.create(run.run_dir, method="GOOD", sequence_name="sa",
+                              sequence_path=seqs["a"])
+    (folder.path / "sweep.json").write_text(json.dumps({
+        "run_id": run.run_id, "config_hash": run.config_hash, "state": "running",
+        "pid": 4242, "host": "node7"}))
+    folder.set_progress(3, 6)
+    folder.mark_running()  # what the next heartbeat writes
+    with run_lock(run) as mine:  # the worker's lock
+        assert mine
+        row = run_row(run)
+    assert row["state"] == "running" and row["reason"] == "pid 4242 on node7, at frame 3/6"
+    folder.mark_done()

@@ -130,6 +130,7 @@ def test_a_run_with_a_swallowed_signal_stops_at_the_next_frame(tmp_path: Path, r
     status = RunFolder.open(out).read_status()
     assert status.state == "interrupted" and status.reason == "interrupted by SIGTERM"
     assert len(RunFolder.open(out).read_trajectory()) == 2  # frames 0 and 1
+    assert status.progress is not None and status.progress[0] == 2  # says where it stopped
 
 
 def test_a_signal_swallowed_in_map_initialisation_stops_it(tmp_path: Path, room_sequence,

@@ -198,3 +198,32 @@ def test_a_signal_surfacing_inside_numba_exits_as_an_interruption(monkeypatch, c
     code, err = _cli(capsys, "list-scenes")
     assert code == 143, err
     assert err.strip() == "interrupted by SIGTERM"
+
+
+def test_progress_rides_on_the_heartbeat_and_stays_in_the_final_status(tmp_path, tiny_sequence,
+                                                                        monkeypatch):
+    """``set_progress`` writes nothing itself; the next heartbeat carries it (what a sweep
+    status shows for a long run) and the final state keeps where the run ended."""
+    monkeypatch.setattr(folder_mod, "HEARTBEAT_S", 0.02)
+    run = RunFolder.create(tmp_path / "r", method="m", sequence_name="s",
+                           sequence_path=tiny_sequence)
+    assert "progress" not in _status(run.path) and run.read_status().progress_text() == ""
+    run.set_progress(123, 300)
+    deadline = time.monotonic() + 10
+    while "progress" not in _status(run.path) and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert _status(run.path)["progress"] == {"done": 123, "total": 300}
+    status = run.read_status()
+    assert status.state == "running" and status.progress_text() == "frame 123/300"
+    run.set_progress(124, 300)
+    run.mark_interrupted("interrupted by SIGTERM")
+    assert run.read_status().progress == (124, 300)
+
+
+@pytest.mark.parametrize("progress", [{"done": 4}, {"done": 5, "total": 4}, [1, 2],
+                                      {"done": -1, "total": 4}, {"done": True, "total": 4}])
+def test_a_malformed_progress_names_the_file(done_run, progress):
+    data = _status(done_run.path)
+    (done_run.path / "status.json").write_text(json.dumps({**data, "progress": progress}))
+    with pytest.raises(InputError, match="status.json.*'progress' must be"):
+        done_run.read_status()
