@@ -74,7 +74,6 @@ def run_slam(seq: Sequence, out: str | Path, *, method_name: str, config: SlamCo
         system = SlamSystem(seq, config, device=device, seed=seed, log=run.log)
         bar = tqdm(total=n, desc=f"{method_name} {seq.name}", unit="frame", disable=not progress)
         t_start = time.perf_counter()
-
         run.set_progress(0, n)
 
         def on_frame(rep: FrameReport) -> None:
