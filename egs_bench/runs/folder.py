@@ -582,10 +582,17 @@ class RunFolder:
     @contextlib.contextmanager
     def failure_guard(self) -> Iterator[RunFolder]:
         """Context manager: on an exception mark the run ``failed`` with it (``interrupted`` on
-        Ctrl-C or SIGTERM, see :class:`egs_bench.errors.Interrupted`), then re-raise."""
+        Ctrl-C or SIGTERM, see :class:`egs_bench.errors.Interrupted`), then re-raise.
+
+        A run already marked ``done`` keeps that status: every output was written before
+        :meth:`mark_done`, and a signal that lands after it (while the heartbeat thread is
+        joined or the lock released, still inside the block) must not send a finished run
+        back to be computed again."""
         try:
             yield self
         except BaseException as exc:
+            if self._state == "done":
+                raise
             interrupt = interruption_in(exc)  # also one that surfaced inside numba
             if interrupt is not None:
                 self.mark_interrupted(interruption_reason(interrupt))

@@ -107,10 +107,14 @@ def _sweep_stopped_after_the_method(sweep_dir: Path) -> tuple[Path, subprocess.P
     env = {**os.environ, "FAKE_SLEEP_AFTER_S": "60"}
     proc = subprocess.Popen([*EGS_BENCH, "sweep", str(sweep)], env=env, start_new_session=True,
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
-    deadline = time.monotonic() + 60
-    while time.monotonic() < deadline and not (
-            (run_dir / "status.json").is_file()
-            and json.loads((run_dir / "status.json").read_text())["state"] == "done"):
+    # a wait bound, not a tolerance (the method reaches "done" in ~5 s on one core): past it
+    # the test fails here instead of stopping a run that never got there and then reading
+    # the legitimate rerun as a wrongly rerun finished run
+    deadline = time.monotonic() + 300
+    while not ((run_dir / "status.json").is_file()
+               and json.loads((run_dir / "status.json").read_text())["state"] == "done"):
+        assert time.monotonic() < deadline and proc.poll() is None, (
+            f"the sweep's method did not mark {run_dir} done (launcher exit code {proc.poll()})")
         time.sleep(0.05)
     return sweep, proc, run_dir
 

@@ -88,3 +88,22 @@ def test_signal_surfacing_as_a_numba_system_error_marks_the_run_interrupted(tmp_
     assert info.value.exit_code == 143
     status = run.read_status()
     assert status.state == "interrupted" and status.reason == "interrupted by SIGTERM"
+
+
+def test_signal_after_mark_done_keeps_the_run_done(tmp_path) -> None:
+    """A SIGTERM that lands after ``mark_done`` but inside ``failure_guard`` (a sweep's kill
+    arriving while the worker leaves the block) propagates but leaves the run ``done``: its
+    outputs are complete, and an ``interrupted`` status would make a sweep compute it again."""
+    import signal
+
+    from egs_bench.errors import Interrupted
+
+    run = RunFolder.create(tmp_path / "r", method="m", sequence_name="s", sequence_path=tmp_path)
+    with pytest.raises(Interrupted), run.failure_guard():
+        run.write_trajectory(np.arange(3) * 0.1, _poses(3))
+        run.mark_done()
+        raise Interrupted(signal.SIGTERM)
+    assert run.read_status().state == "done"
+    with pytest.raises(RuntimeError), run.failure_guard():
+        raise RuntimeError("after done")
+    assert run.read_status().state == "done"
