@@ -56,7 +56,8 @@ from egs_bench.runs.folder import RunFolder
 
 _RENDER = re.compile(r"^(\d+)\.png$")
 IMPORT_FORMATS = ("tum", "orbslam2", "photoslam", "monogs", "rampvo")
-METHOD_NAMES = {"tum": None, "orbslam2": "ORB-SLAM2", "photoslam": "Photo-SLAM",
+# leaderboard names of the systems (a ``tum`` import names its method itself)
+METHOD_NAMES = {"orbslam2": "ORB-SLAM2", "photoslam": "Photo-SLAM",
                 "monogs": "MonoGS", "rampvo": "RampVO"}
 QUATERNION_ORDERS = ("rampvo", "wxyz")
 _MATCH_TOL_S = 5e-4  # external stamps are printed with 6 decimals
@@ -165,12 +166,12 @@ def read_orbslam2(source: str | Path, *, camera_file: str = "CameraTrajectory.tx
     """ORB-SLAM2 (or ORB-SLAM3 with ``*_TUM.txt`` names): a folder holding both files, or one
     of them (a file whose name contains ``KeyFrame`` is the keyframe trajectory)."""
     source = Path(source)
+    cam: Path | None
+    kf: Path | None
     if source.is_dir():
         cam, kf = source / camera_file, source / keyframe_file
         cam = cam if cam.is_file() else None
         kf = kf if kf.is_file() else None
-        if cam is None and kf is None:
-            raise InputError(source, f"holds neither {camera_file} nor {keyframe_file}")
     elif source.is_file():
         cam, kf = (None, source) if "keyframe" in source.name.lower() else (source, None)
     else:
@@ -182,6 +183,8 @@ def read_orbslam2(source: str | Path, *, camera_file: str = "CameraTrajectory.tx
             est.keyframe_stamps_s = read_tum(kf).timestamps
             est.sources.append(str(kf))
         return est
+    if kf is None:
+        raise InputError(source, f"holds neither {camera_file} nor {keyframe_file}")
     traj = read_tum(kf, min_poses=3)
     return ExternalEstimate(traj.poses, stamps_s=traj.timestamps, poses_kind="keyframes",
                             keyframe_stamps_s=traj.timestamps, sources=[str(kf)])
@@ -509,9 +512,9 @@ def import_external_run(
         if est.ply is None:
             raise InputError(source, "no point_cloud/final/point_cloud.ply to render "
                                      "(--render-ply needs a MonoGS result folder)")
-        for f, image in zip(seq_frames, _render_ply(est.ply, poses, seq.intrinsics),
-                            strict=True):
-            renders[int(f)] = image
+        for f, rendered in zip(seq_frames, _render_ply(est.ply, poses, seq.intrinsics),
+                               strict=True):
+            renders[int(f)] = rendered
     renders_kind = "none" if not renders else (
         "all" if len(renders) >= len(seq) else
         "keyframes" if est.poses_kind == "keyframes" or est.renders else "subset")

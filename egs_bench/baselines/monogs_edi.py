@@ -19,7 +19,7 @@ import io
 from collections import OrderedDict
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, cast
 
 from egs_bench.baselines.edi import EdiConfig, EdiResult
 from egs_bench.runs.registry import register_builtin
@@ -117,9 +117,10 @@ class MonoGsEdiMethod(ConfiguredSlamMethod):
         run_file = Path(out) / RUN_FILE
         before = run_file.read_bytes() if run_file.is_file() else None
         try:
-            return run_slam(view, out, method_name=self.name, config=config, preset=preset,
-                            device=device, seed=seed, max_frames=max_frames, progress=progress,
-                            overwrite=overwrite)
+            # the view has Sequence's interface (delegation), with EDI images from rgb()
+            return run_slam(cast("Sequence", view), out, method_name=self.name, config=config,
+                            preset=preset, device=device, seed=seed, max_frames=max_frames,
+                            progress=progress, overwrite=overwrite)
         finally:
             # only a run folder this call created (a refused --out is someone else's run)
             if run_file.is_file() and run_file.read_bytes() != before:

@@ -91,9 +91,10 @@ class Leaderboard:
         """Mean over the sequences of a row's means (``None`` unless it has every sequence);
         a derived value (``n == 0``: no spread, no count)."""
         stats = [self.stat(row, s, key) for s in self.sequences]
-        if not stats or any(s is None for s in stats):
+        present = [s for s in stats if s is not None]
+        if not stats or len(present) < len(stats):
             return None
-        return Stat(float(np.mean([s.mean for s in stats])), math.nan, 0)
+        return Stat(float(np.mean([s.mean for s in present])), math.nan, 0)
 
 
 def _check_metrics(metrics: Seq[str]) -> None:

@@ -50,11 +50,13 @@ name and renamed at the end (:func:`egs_bench.fileio.atomic_dir`).
 
 from __future__ import annotations
 
+import collections.abc
 import csv
 import shutil
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, overload
 
 import numpy as np
 import yaml
@@ -237,16 +239,24 @@ def _export_tum(seq, tmp: Path, n: int, t_export: np.ndarray, out_abs: Path, pro
                    "fps": round(fps, 6)}, notes
 
 
-class _LazyFrames:
+class _LazyFrames(collections.abc.Sequence[np.ndarray]):
     """``frames[i]`` reads frame ``i`` on demand (the Replica writer iterates once)."""
 
-    def __init__(self, n: int, read) -> None:
+    def __init__(self, n: int, read: Callable[[int], np.ndarray]) -> None:
         self._n, self._read = n, read
 
     def __len__(self) -> int:
         return self._n
 
-    def __getitem__(self, i: int):
+    @overload
+    def __getitem__(self, i: int) -> np.ndarray: ...
+
+    @overload
+    def __getitem__(self, i: slice) -> list[np.ndarray]: ...
+
+    def __getitem__(self, i: int | slice) -> np.ndarray | list[np.ndarray]:
+        if isinstance(i, slice):
+            return [self._read(j) for j in range(*i.indices(self._n))]
         if not 0 <= i < self._n:
             raise IndexError(i)
         return self._read(i)

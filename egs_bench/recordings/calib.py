@@ -116,7 +116,8 @@ def _camera(path: Path, key: str, raw: Any) -> CameraModel:
     if not isinstance(coeffs, list) or not all(isinstance(v, int | float) for v in coeffs):
         raise InputError(path, f"{key}.distortion must be a list of numbers")
     try:
-        return CameraModel(int(raw["width"]), int(raw["height"]), *(float(v) for v in intr),
+        fx, fy, cx, cy = (float(v) for v in intr)
+        return CameraModel(int(raw["width"]), int(raw["height"]), fx, fy, cx, cy,
                            model=str(raw.get("distortion_model") or "none"), coeffs=tuple(coeffs))
     except ValueError as exc:
         raise InputError(path, f"{key}: {exc}") from None

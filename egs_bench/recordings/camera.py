@@ -85,8 +85,8 @@ class CameraModel:
         [N, 2] of the rays through them, float64."""
         pts = np.ascontiguousarray(np.asarray(uv, dtype=np.float64).reshape(-1, 1, 2))
         if not self.distorted:
-            out = (pts.reshape(-1, 2) - [self.cx, self.cy]) / [self.fx, self.fy]
-            return out
+            return (pts.reshape(-1, 2) - [self.cx, self.cy]) / [self.fx, self.fy]
+        out: np.ndarray
         if self.model == "equidistant":
             out = cv2.fisheye.undistortPoints(pts, self.K, self._dist())
         else:

@@ -35,6 +35,7 @@ from egs_bench.fileio import atomic_dir
 from egs_bench.geometry import interpolate_trajectory, invert_pose
 from egs_bench.outputs import prepare_output
 from egs_bench.recordings.calib import RecordingCalib, load_calib
+from egs_bench.recordings.camera import CameraModel
 from egs_bench.recordings.depth import reproject_depth, warp_to_depth_camera
 from egs_bench.recordings.presets import get_preset
 from egs_bench.recordings.streams import DepthStream, EventSource, FrameStream, PoseTrack
@@ -130,7 +131,12 @@ def apply_preset(spec: RecordingSpec) -> RecordingSpec:
 
 @dataclass
 class _Inputs:
+    """The opened inputs; ``event_camera`` and ``depth_camera`` are the calibration's, resolved
+    (a CameraInfo topic fills a missing event camera) and checked against the data."""
+
     calib: RecordingCalib
+    event_camera: CameraModel
+    depth_camera: CameraModel
     events: EventSource
     frames: FrameStream
     depth: DepthStream
@@ -200,6 +206,8 @@ def _open_inputs(spec: RecordingSpec) -> _Inputs:
         calib = replace(calib, event_camera=cam, depth_camera=cam if on_event
                         else calib.depth_camera)
     cam = calib.event_camera
+    if cam is None:
+        raise calib.error("no event_camera")
     if (events.width, events.height) != (cam.width, cam.height):
         raise calib.error(f"event_camera is {cam.width}x{cam.height} but {events.label} "
                           f"declares a {events.width}x{events.height} sensor")
@@ -225,7 +233,8 @@ def _open_inputs(spec: RecordingSpec) -> _Inputs:
         raise calib.error(f"{which} is {frame_cam.width}x{frame_cam.height} but the frames in "
                           f"{frames.label} are {frames.width}x{frames.height}")
     # depth
-    if calib.depth_camera is None:
+    dcam = calib.depth_camera
+    if dcam is None:
         raise calib.error("no depth_camera (a camera, or `event` when depth is on the event "
                           "camera's grid)")
     kind = _kind(spec.depth, "depth")
@@ -238,7 +247,6 @@ def _open_inputs(spec: RecordingSpec) -> _Inputs:
                                      calib.depth_scale)
     else:
         raise InputError(spec.depth, "depth must come from a ROS1 bag or a folder of PNGs")
-    dcam = calib.depth_camera
     if (depth.width, depth.height) != (dcam.width, dcam.height):
         raise calib.error(f"depth_camera is {dcam.width}x{dcam.height} but the depth maps in "
                           f"{depth.label} are {depth.width}x{depth.height}")
@@ -250,7 +258,7 @@ def _open_inputs(spec: RecordingSpec) -> _Inputs:
         gt = folders.tum_track(spec.gt)
     else:
         raise InputError(spec.gt, "ground truth must be a TUM file or a ROS1 bag")
-    return _Inputs(calib, events, frames, depth, gt)
+    return _Inputs(calib, cam, dcam, events, frames, depth, gt)
 
 
 # ------------------------------------------------------------------------------------------
@@ -369,7 +377,7 @@ def _lockstep(stream_load, wanted: np.ndarray) -> Iterator[np.ndarray]:
     """Yield the item for each of ``wanted`` (non-decreasing indices) from one ordered pass."""
     unique = sorted(set(int(i) for i in wanted))
     gen = stream_load(unique)
-    current_i, current = -1, None
+    current_i = -1  # indices are >= 0: the first wanted index always loads
     for i in wanted:
         while current_i != int(i):
             current_i, current = next(gen)
@@ -406,12 +414,13 @@ def import_recording(spec: RecordingSpec, out: str | Path, *, overwrite: bool = 
     inp = _open_inputs(spec)
     plan = _plan(inp, spec)
     calib = inp.calib
-    cam = calib.event_camera
+    cam = inp.event_camera
     pinhole = cam.pinhole()
     lut = cam.event_lookup()
-    depth_rays = calib.depth_camera.pixel_rays()
+    depth_rays = inp.depth_camera.pixel_rays()
     T_frame_event = invert_pose(calib.T_event_frame)  # noqa: N806
-    on_frame_sensor = calib.frame_camera is None
+    frame_cam = calib.frame_camera
+    on_frame_sensor = frame_cam is None
     name = spec.name or out.name
     meta: dict[str, Any] = {
         "name": name, "source": "real", "generator": "egs-bench import-recording",
@@ -436,9 +445,11 @@ def import_recording(spec: RecordingSpec, out: str | Path, *, overwrite: bool = 
     valid_frac: list[float] = []
     with atomic_dir(out, replace=overwrite) as tmp:
         writer = SequenceWriter(tmp, meta, t_offset_us=int(plan.t_start[0]), with_sharp=False)
+        events_out = writer.events
+        assert events_out is not None  # t_offset_us given: the writer has an event file
         for batch in _events_in(inp.events, lut, cam.width, cam.height, int(plan.t_start[0]),
                                 int(plan.t_end[-1]), ev_stats):
-            writer.events.append(batch)
+            events_out.append(batch)
         if ev_stats["read"] == 0:
             span = (f"[{ev_stats['first_us'] * 1e-6:.3f}, {ev_stats['last_us'] * 1e-6:.3f}] s"
                     if "first_us" in ev_stats else "none")
@@ -452,11 +463,10 @@ def import_recording(spec: RecordingSpec, out: str | Path, *, overwrite: bool = 
         for k in range(len(plan.frames)):
             depth = reproject_depth(next(depths), depth_rays, calib.T_event_depth, pinhole)
             image = next(images)
-            if on_frame_sensor:
+            if frame_cam is None:
                 rgb = cam.undistort_image(image)
             else:
-                rgb, _ = warp_to_depth_camera(image, calib.frame_camera, depth, pinhole,
-                                              T_frame_event)
+                rgb, _ = warp_to_depth_camera(image, frame_cam, depth, pinhole, T_frame_event)
             valid_frac.append(float((depth > 0).mean()))
             writer.add_frame(int(plan.t_start[k]), int(plan.t_end[k]), rgb, depth,
                              plan.poses[k])

@@ -314,8 +314,9 @@ def _events_from_msg(msg: Any) -> Events:
         t = [_stamp_us(e.ts) for e in evs]
     else:
         t = [int(e.time) // 1000 for e in evs]  # 2014 dvs_msgs: uint64 nanoseconds
-    return Events.from_arrays([e.x for e in evs], [e.y for e in evs], t,
-                              [bool(e.polarity) for e in evs])
+    return Events.from_arrays(np.array([e.x for e in evs]), np.array([e.y for e in evs]),
+                              np.array(t, dtype=np.int64),
+                              np.array([bool(e.polarity) for e in evs]))
 
 
 def _image_array(msg: Any) -> np.ndarray:

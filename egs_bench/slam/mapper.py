@@ -31,7 +31,7 @@ from egs_bench.slam.render_model import (
     render_views,
     stack_targets,
 )
-from egs_bench.slam.tracker import to_device
+from egs_bench.slam.tracker import flat_grad, to_device
 
 
 class Mapper:
@@ -147,7 +147,7 @@ class Mapper:
             exp_ab = packed[n_vm:].view(-1, 2) if use_exposure else None
             if refine:
                 viewmats.requires_grad_()
-            if free_exposure:
+            if free_exposure and exp_ab is not None:
                 exp_ab.requires_grad_()
             targets = stack_targets([self._targets(k, observations[k]) for k in views])
             res = render_views(self.gmap, viewmats, self.K, self.width, self.height, cfg)
@@ -161,9 +161,9 @@ class Mapper:
             total.backward()
             grads = []
             if refine:
-                grads.append(viewmats.grad.reshape(-1))
-            if free_exposure:
-                grads.append(exp_ab.grad.reshape(-1))
+                grads.append(flat_grad(viewmats))
+            if free_exposure and exp_ab is not None:
+                grads.append(flat_grad(exp_ab))
             host = torch.cat([*grads, total.detach().reshape(1)]).cpu().numpy().astype(
                 np.float64)
             loss_val = float(host[-1])

@@ -13,7 +13,8 @@ operations (each one is a kernel launch on a GPU; see ``benchmarks/bench_slam_ov
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 import torch
@@ -92,13 +93,19 @@ def prepare_targets(obs: FrameObs, cfg: SlamConfig, theta: tuple[float, float], 
 
 
 def stack_targets(targets: list[LossTargets]) -> LossTargets:
-    """Concatenate the views of several :class:`LossTargets` (all with or all without events)."""
-    def cat(name: str) -> torch.Tensor | None:
-        parts = [getattr(t, name) for t in targets]
-        return None if any(p is None for p in parts) else torch.cat(parts)
+    """Concatenate the views of several :class:`LossTargets` (events only if all have them)."""
+    def cat(parts: list[torch.Tensor | None]) -> torch.Tensor | None:
+        present = [p for p in parts if p is not None]
+        return torch.cat(present) if len(present) == len(parts) else None
     first = targets[0]
-    return LossTargets(*(cat(f.name) for f in fields(LossTargets)[:6]), first.luma_weights,
-                       first.photo_scale, first.depth_scale, first.event_scale)
+    return LossTargets(torch.cat([t.rgb for t in targets]),
+                       torch.cat([t.photo_weight for t in targets]),
+                       torch.cat([t.depth for t in targets]),
+                       torch.cat([t.depth_mask for t in targets]),
+                       cat([t.event_target for t in targets]),
+                       cat([t.event_weight for t in targets]),
+                       first.luma_weights, first.photo_scale, first.depth_scale,
+                       first.event_scale)
 
 
 def render_views(gmap: GaussianMap | FrozenGaussians, viewmats: torch.Tensor | np.ndarray,
@@ -114,10 +121,22 @@ def render_views(gmap: GaussianMap | FrozenGaussians, viewmats: torch.Tensor | n
                        backend=cfg.runtime.backend, visibility=visibility)
 
 
+class _LossParts(NamedTuple):
+    """What :func:`blur_loss` and :func:`blur_loss_terms` share: the weighted total (scalar),
+    the per-frame photometric and depth sums ``l_i``, ``l_d`` [V] and the event residual
+    ``|theta E - predicted|`` [V, K, H, W] (None without events)."""
+
+    total: torch.Tensor
+    l_i: torch.Tensor
+    l_d: torch.Tensor
+    event_resid: torch.Tensor | None
+
+
 def blur_loss(res, targets: LossTargets, crf: Callable[[torch.Tensor], torch.Tensor],
-              exp_ab: torch.Tensor | None, cfg: SlamConfig, *, tracking: bool, eps: float,
-              terms: bool = False) -> torch.Tensor | dict[str, torch.Tensor]:
-    """Sum over the V frames of ``lambda_E L_E + lambda_ID (lambda_I L_I + lambda_D L_D)``.
+              exp_ab: torch.Tensor | None, cfg: SlamConfig, *, tracking: bool,
+              eps: float) -> torch.Tensor:
+    """Sum over the V frames of ``lambda_E L_E + lambda_ID (lambda_I L_I + lambda_D L_D)``
+    (a scalar tensor).
 
     Args:
         res: RasterResult of V x M cameras, frame-major (M sub-poses of frame 0, then frame 1...).
@@ -129,12 +148,38 @@ def blur_loss(res, targets: LossTargets, crf: Callable[[torch.Tensor], torch.Ten
             where the rendered opacity > 0.95, events where it is > 0.5 in every sub-image)
             instead of the mapping masks.
         eps: log offset of the event model (the sequence's).
-        terms: return the per-term sums over frames (``photometric`` L_I, ``depth`` L_D,
-            ``event_he``, ``event_ne``, ``total``) instead of the total alone (diagnostics;
-            more operations; a term whose weight is 0 is NaN).
 
     Every mean runs over all pixels with masked pixels counting zero (MonoGS), per frame.
     """
+    return _loss_parts(res, targets, crf, exp_ab, cfg, tracking=tracking, eps=eps).total
+
+
+def blur_loss_terms(res, targets: LossTargets, crf: Callable[[torch.Tensor], torch.Tensor],
+                    exp_ab: torch.Tensor | None, cfg: SlamConfig, *, tracking: bool,
+                    eps: float) -> dict[str, torch.Tensor]:
+    """The terms of :func:`blur_loss` (same arguments), summed over frames, for diagnostics:
+    ``photometric`` L_I, ``depth`` L_D, ``event_he``, ``event_ne`` (unweighted; a term whose
+    weight is 0 is NaN) and the weighted ``total``. Costs a few more operations."""
+    parts = _loss_parts(res, targets, crf, exp_ab, cfg, tracking=tracking, eps=eps)
+    h, w = res.rgb.shape[1:3]
+    total = parts.total
+
+    def unscaled(value: torch.Tensor, weight: float) -> torch.Tensor:
+        return value / weight if weight else torch.full_like(value, float("nan"))
+    out = {"photometric": unscaled(parts.l_i.sum(), targets.photo_scale * 3 * h * w),
+           "depth": unscaled(parts.l_d.sum(), targets.depth_scale * h * w),
+           "event_he": total.new_zeros(()), "event_ne": total.new_zeros(()), "total": total}
+    if parts.event_resid is not None and targets.event_target is not None:
+        resid = parts.event_resid
+        has = (targets.event_target != 0).to(resid.dtype)
+        out["event_he"] = (has * resid).mean((1, 2, 3)).sum()
+        out["event_ne"] = ((1 - has) * resid).mean((1, 2, 3)).sum()
+    return out
+
+
+def _loss_parts(res, targets: LossTargets, crf: Callable[[torch.Tensor], torch.Tensor],
+                exp_ab: torch.Tensor | None, cfg: SlamConfig, *, tracking: bool,
+                eps: float) -> _LossParts:
     v = targets.n_views
     c, h, w = res.rgb.shape[:3]
     m = c // v
@@ -151,25 +196,14 @@ def blur_loss(res, targets: LossTargets, crf: Callable[[torch.Tensor], torch.Ten
     l_d = (depth_mask * (depth - targets.depth[:, None]).abs()).sum((2, 3)).amin(1)  # [V]
     total = (l_i + l_d).sum()
     resid = None
-    if targets.event_target is not None and m > 1:
+    event_target, event_weight = targets.event_target, targets.event_weight
+    if event_target is not None and event_weight is not None and m > 1:
         pred = rendered_event_maps(hdr, eps, targets.luma_weights)  # [V, K, H, W]
-        resid = (targets.event_target - pred).abs()
+        resid = (event_target - pred).abs()
         if tracking:
             resid = resid * (alpha > 0.5).all(1, keepdim=True)
-        total = total + (targets.event_weight * resid).sum()
-    if not terms:
-        return total
-
-    def unscaled(value: torch.Tensor, weight: float) -> torch.Tensor:
-        return value / weight if weight else torch.full_like(value, float("nan"))
-    out = {"photometric": unscaled(l_i.sum(), targets.photo_scale * 3 * h * w),
-           "depth": unscaled(l_d.sum(), targets.depth_scale * h * w),
-           "event_he": total.new_zeros(()), "event_ne": total.new_zeros(()), "total": total}
-    if resid is not None:
-        has = (targets.event_target != 0).to(resid.dtype)
-        out["event_he"] = (has * resid).mean((1, 2, 3)).sum()
-        out["event_ne"] = ((1 - has) * resid).mean((1, 2, 3)).sum()
-    return out
+        total = total + (event_weight * resid).sum()
+    return _LossParts(total, l_i, l_d, resid)
 
 
 def respond(crf: Callable[[torch.Tensor], torch.Tensor], hdr: torch.Tensor,
@@ -194,7 +228,7 @@ class _FixedResponseWithExposure(torch.autograd.Function):
     autograd graph of the curve's branches)."""
 
     @staticmethod
-    def forward(ctx, hdr: torch.Tensor, exp_ab: torch.Tensor, crf) -> torch.Tensor:  # type: ignore[override]
+    def forward(ctx, hdr: torch.Tensor, exp_ab: torch.Tensor, crf) -> torch.Tensor:
         value, slope = crf.value_and_slope(hdr)
         gain = exp_ab[:, 0].exp().view(-1, 1, 1, 1)
         out = torch.addcmul(exp_ab[:, 1].view(-1, 1, 1, 1), value, gain)
@@ -202,7 +236,7 @@ class _FixedResponseWithExposure(torch.autograd.Function):
         return out
 
     @staticmethod
-    def backward(ctx, grad: torch.Tensor):  # type: ignore[override]
+    def backward(ctx, grad: torch.Tensor):
         out, d_hdr, b = ctx.saved_tensors
         # d/da = exp(a) f(h) = out - b; d/db = 1
         g_a = (grad * (out - b.view(-1, 1, 1, 1))).sum((1, 2, 3))

@@ -47,6 +47,13 @@ def to_device(values: np.ndarray, like: torch.Tensor) -> torch.Tensor:
     return host.to(device=like.device, dtype=like.dtype, non_blocking=True)
 
 
+def flat_grad(leaf: torch.Tensor) -> torch.Tensor:
+    """The gradient of ``leaf`` after ``backward()``, flattened [N]; an error if it got none."""
+    if leaf.grad is None:
+        raise RuntimeError("the loss does not depend on a tensor the step needs a gradient of")
+    return leaf.grad.reshape(-1)
+
+
 def anchored_start(anchor: tuple[np.ndarray, float], pose1_cw: np.ndarray
                    ) -> tuple[np.ndarray, np.ndarray]:
     """``T_0`` [4, 4] at fraction ``anchor[1]`` of the path from ``anchor[0]`` to ``pose1_cw``,
@@ -73,8 +80,8 @@ def track_frame(gmap: GaussianMap, crf: CameraResponse, obs: FrameObs, init: Fra
     """
     fractions = obs.fractions
     blur = len(fractions) > 1
-    anchored = blur and start_anchor is not None
-    n_free = 2 if blur and not anchored else 1
+    anchor = start_anchor if blur else None
+    n_free = 2 if blur and anchor is None else 1
     pose0, pose1 = init.pose0_cw.copy(), init.pose1_cw.copy()
     use_exposure = cfg.method.exposure_compensation
     exposure = np.array([init.exp_a, init.exp_b])
@@ -95,8 +102,8 @@ def track_frame(gmap: GaussianMap, crf: CameraResponse, obs: FrameObs, init: Fra
         it = step_i
         # Map from the free twists (xi_0, xi_1 | xi_1) to the end twists (xi_0, xi_1) [12, 6n].
         select = np.zeros((12, 6 * n_free))
-        if anchored:
-            pose0, d0 = anchored_start(start_anchor, pose1)
+        if anchor is not None:
+            pose0, d0 = anchored_start(anchor, pose1)
             select[:6], select[6:] = d0, np.eye(6)
         elif n_free == 2:
             select[:] = np.eye(12)
@@ -109,7 +116,7 @@ def track_frame(gmap: GaussianMap, crf: CameraResponse, obs: FrameObs, init: Fra
         res = render_views(scene, viewmats, K, width, height, cfg)
         total = blur_loss(res, targets, curve, exp_ab, cfg, tracking=True, eps=eps)
         total.backward()
-        grads = [viewmats.grad.reshape(-1)] + ([exp_ab.grad.reshape(-1)] if use_exposure else [])
+        grads = [flat_grad(viewmats)] + ([flat_grad(exp_ab)] if exp_ab is not None else [])
         host = torch.cat([*grads, total.detach().reshape(1)]).cpu().numpy().astype(np.float64)
         loss_val = float(host[-1])
         if not math.isfinite(loss_val):
@@ -126,8 +133,8 @@ def track_frame(gmap: GaussianMap, crf: CameraResponse, obs: FrameObs, init: Fra
         if float(np.linalg.norm(steps, axis=-1).max()) < cfg.budget.converged_threshold:
             converged = True
             break
-    if anchored:
-        pose0 = anchored_start(start_anchor, pose1)[0]
+    if anchor is not None:
+        pose0 = anchored_start(anchor, pose1)[0]
     elif not blur:
         pose0 = pose1.copy()
     state = FrameState(init.index, pose0, pose1, float(exposure[0]), float(exposure[1]))

@@ -15,7 +15,12 @@ from egs_bench.slam import exposure, keyframes, losses
 from egs_bench.slam.config import cpu_preset
 from egs_bench.slam.crf import make_crf
 from egs_bench.slam.frames import FrameObs
-from egs_bench.slam.render_model import blur_loss, prepare_targets, stack_targets
+from egs_bench.slam.render_model import (
+    blur_loss,
+    blur_loss_terms,
+    prepare_targets,
+    stack_targets,
+)
 
 
 def _random_pose(rng: np.random.Generator, rot_scale: float = 1.0) -> np.ndarray:
@@ -129,8 +134,8 @@ def test_losses_against_hand_computation() -> None:
     d_pred = torch.stack([d_obs + 0.5, d_obs + 0.1, d_obs - 0.3])
     res = _raster(torch.zeros(3, 2, 2, 3, dtype=f64), d_pred)
     obs = _obs(obs_rgb, d_obs, [0.0, 0.5, 1.0])
-    t = blur_loss(res, prepare_targets(obs, cfg, (0.25, 0.3), tracking=False, use_events=False),
-                  identity, None, cfg, tracking=False, eps=1e-3, terms=True)
+    mapping_targets = prepare_targets(obs, cfg, (0.25, 0.3), tracking=False, use_events=False)
+    t = blur_loss_terms(res, mapping_targets, identity, None, cfg, tracking=False, eps=1e-3)
     assert t["photometric"].item() == pytest.approx(1.8 / 12)
     # per pose mean over 4 pixels: 1.5/4, 0.3/4, 0.9/4 -> min 0.075
     assert t["depth"].item() == pytest.approx(0.075)
@@ -140,15 +145,16 @@ def test_losses_against_hand_computation() -> None:
     alpha = torch.ones(3, 2, 2, dtype=f64)
     alpha[1, 0, 0] = 0.5
     res_t = _raster(torch.zeros(3, 2, 2, 3, dtype=f64), d_pred, alpha)
-    t = blur_loss(res_t, prepare_targets(obs, cfg, (0.25, 0.3), tracking=True, use_events=False),
-                  identity, None, cfg, tracking=True, eps=1e-3, terms=True)
+    t = blur_loss_terms(res_t, prepare_targets(obs, cfg, (0.25, 0.3), tracking=True,
+                                               use_events=False),
+                        identity, None, cfg, tracking=True, eps=1e-3)
     assert t["depth"].item() == pytest.approx(0.05)
     assert t["photometric"].item() == pytest.approx(1.8 * (2.5 / 3) / 12)
     # Exposure compensation exp(a) I + b on the prediction: with a = log 2, b = 0.1 a black
     # render predicts 0.1 everywhere.
-    t = blur_loss(res, prepare_targets(obs, cfg, (0.25, 0.3), tracking=False, use_events=False),
-                  identity, torch.tensor([[np.log(2.0), 0.1]], dtype=f64), cfg, tracking=False,
-                  eps=1e-3, terms=True)
+    t = blur_loss_terms(res, mapping_targets, identity,
+                        torch.tensor([[np.log(2.0), 0.1]], dtype=f64), cfg, tracking=False,
+                        eps=1e-3)
     assert t["photometric"].item() == pytest.approx((0.2 + 0.5 + 0.8) / 12)
 
     # Event maps: two renders of a 1x2 image with luma 0.5 -> 0.8 and 0.4 -> 0.4.
@@ -167,9 +173,9 @@ def test_losses_against_hand_computation() -> None:
         ev = _obs(torch.full((1, 2, 3), 0.5, dtype=f64), one, [0.0, 1.0],
                   torch.tensor([[[2 * sign, 0]]]))
         res_e = _raster(hdr2, torch.ones(2, 1, 2, dtype=f64))
-        t = blur_loss(res_e, prepare_targets(ev, cfg, (0.25, 0.3), tracking=False,
-                                             use_events=True), identity, None, cfg,
-                      tracking=False, eps=eps, terms=True)
+        t = blur_loss_terms(res_e, prepare_targets(ev, cfg, (0.25, 0.3), tracking=False,
+                                                   use_events=True), identity, None, cfg,
+                            tracking=False, eps=eps)
         assert t["event_he"].item() == pytest.approx(abs(2 * sign * theta - expect) / 2)
         assert t["event_ne"].item() == pytest.approx(0.1 / 2)
         no_events = blur_loss(res_e, prepare_targets(ev, cfg, (0.25, 0.3), tracking=False,
@@ -297,17 +303,16 @@ def test_normalised_depth_keeps_alpha_in_the_graph() -> None:
                         torch.full((1, 3), 0.5, dtype=f64), torch.eye(4, dtype=f64)[None], K,
                         w, h, backend="reference")
         targets = prepare_targets(obs, cfg, (0.25, 0.25), tracking=tracking, use_events=False)
-        parts = blur_loss(res, targets, crf, None, cfg, tracking=tracking, eps=1e-3,
-                          terms=True)
+        parts = blur_loss_terms(res, targets, crf, None, cfg, tracking=tracking, eps=1e-3)
         assert parts["depth"].item() == pytest.approx(0.5)
         (grad,) = torch.autograd.grad(parts["total"], opacity, retain_graph=True)
         assert abs(float(grad)) < 1e-9
         detached = res.depth / res.alpha.detach()
         (grad_detached,) = torch.autograd.grad((detached - 2.0).abs().mean(), opacity)
         assert float(grad_detached) > 0.1  # the old form: descent lowers the opacity
-    plain = blur_loss(res, prepare_targets(obs, cfg, (0.25, 0.25), tracking=False,
-                                           use_events=False), crf, None,
-                      cfg.replace(expected_depth=False), tracking=False, eps=1e-3, terms=True)
+    plain = blur_loss_terms(res, prepare_targets(obs, cfg, (0.25, 0.25), tracking=False,
+                                                 use_events=False), crf, None,
+                            cfg.replace(expected_depth=False), tracking=False, eps=1e-3)
     assert plain["depth"].item() == pytest.approx(0.97 * 2.5 - 2.0, abs=0.01)
 
 
