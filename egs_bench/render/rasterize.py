@@ -162,7 +162,12 @@ def rasterize(
             near_plane, far_plane, visibility,
         )
     else:
-        proj = project_gaussians(
+        # reference: the PyTorch statement of the projection; numba: its fused kernels
+        if name == "reference":
+            project = project_gaussians
+        else:
+            from egs_bench.render.numba_projection import project_gaussians_fused as project
+        proj = project(
             means, quats, scales, opacities, viewmats, Ks, width, height, near_plane, far_plane
         )
         if name == "reference":
