@@ -16,14 +16,21 @@ Two ways a plain "raise in the handler" loses a signal, both seen in CI runs:
   repeat within :data:`REPEAT_GRACE_S` of the raised one is therefore ignored: the clean-up it
   would abort is under way. A later repeat (the first one was swallowed, or the user insists)
   raises again.
+
+A signal can also land before any clean-up is in place: a run folder's status reads "running"
+from the moment it is written, a few calls before the run's ``failure_guard`` is entered, and a
+``kill`` sent as soon as that status appeared landed there (seen in one of six tries). Code that
+leaves such state registers a callback with :func:`call_on_interrupt`; the outermost block runs
+it when it ends after a signal.
 """
 
 from __future__ import annotations
 
+import contextlib
 import signal
 import sys
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from typing import Any
 
@@ -39,6 +46,15 @@ HANDLED_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 _received: int | None = None  # the first signal of this process since the handlers went in
 _last_raised_at: float = float("-inf")  # time.monotonic() of the last raise
 _depth = 0  # nesting of :func:`signals_interrupt` (the CLI, then a sweep worker inside it)
+_on_interrupt: list[Callable[[Interrupted], None]] = []
+
+
+def call_on_interrupt(callback: Callable[[Interrupted], None]) -> None:
+    """Have ``callback(interruption)`` called when an outermost :func:`signals_interrupt` block
+    ends after a signal arrived in it (e.g. to mark what the process leaves half-done). It must
+    not raise; an exception from it is dropped so the others still run."""
+    if callback not in _on_interrupt:
+        _on_interrupt.append(callback)
 
 
 def _on_signal(signum: int, _frame: object) -> None:
@@ -86,6 +102,12 @@ def signals_interrupt(signals: tuple[signal.Signals, ...] = HANDLED_SIGNALS) -> 
         yield
     finally:
         _depth -= 1
+        if _depth == 0 and _received is not None:
+            interruption = Interrupted(_received)
+            for callback in list(_on_interrupt):
+                # clean-up must not hide the interruption or stop the other callbacks
+                with contextlib.suppress(BaseException):
+                    callback(interruption)
         sys.unraisablehook = previous_hook
         for sig, handler in previous.items():
             signal.signal(sig, handler)

@@ -48,6 +48,7 @@ import os
 import re
 import socket
 import threading
+import weakref
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -68,7 +69,7 @@ from egs_bench.fileio import (
 )
 from egs_bench.geometry import Trajectory, read_tum, write_tum
 from egs_bench.images import read_ldr_image, write_ldr_image
-from egs_bench.interrupts import raise_if_interrupted
+from egs_bench.interrupts import call_on_interrupt, raise_if_interrupted
 from egs_bench.outputs import prepare_output
 
 RUN_FILE = "run.yaml"
@@ -214,6 +215,22 @@ def _pid_alive(pid: int) -> bool:
     return True
 
 
+#: runs this process has marked running and not finished (see _interrupt_unfinished_runs)
+_RUNNING: weakref.WeakSet[RunFolder] = weakref.WeakSet()
+
+
+def _interrupt_unfinished_runs(interruption: KeyboardInterrupt) -> None:
+    """Mark ``interrupted`` every run this process left ``running`` when a signal ended it: one
+    that landed before the run's :meth:`RunFolder.failure_guard` was entered (inside
+    :meth:`RunFolder.create`, or right after it) has no guard to do so."""
+    for run in list(_RUNNING):
+        with contextlib.suppress(OSError, InputError, OutputError):
+            run.mark_interrupted(interruption_reason(interruption))
+
+
+call_on_interrupt(_interrupt_unfinished_runs)
+
+
 class RunFolder:
     """One method run on one sequence (see the module docstring for the layout).
 
@@ -288,6 +305,7 @@ class RunFolder:
         if not lock.acquire(owner_note()):
             cls._refuse_if_locked(path)
             raise OutputError(path, "is being written by another egs-bench process")
+        run: RunFolder | None = None
         try:
             # checked again under the lock: another process may have finished a run here
             # between the first check and the lock
@@ -313,8 +331,11 @@ class RunFolder:
             run._lock = lock
             run.write_config(config or {})
             run.mark_running()
-        except BaseException:
-            lock.release()
+        except BaseException as exc:
+            if run is not None and run._state == "running":
+                run._record_stop(exc)  # a signal right after the status went out
+            else:
+                lock.release()
             raise
         if stale:
             run.log(f"kept {len(stale)} file(s) of the replaced run folder that a run does not "
@@ -459,6 +480,7 @@ class RunFolder:
 
     def _finish(self, state: str, reason: str | None = None, tracking_lost: bool = False
                 ) -> None:
+        _RUNNING.discard(self)
         self._beat_stop.set()
         with self._status_lock:
             self._write_status(state, reason, tracking_lost)
@@ -489,6 +511,8 @@ class RunFolder:
         heartbeat every :data:`HEARTBEAT_S` seconds."""
         with self._status_lock:
             self._write_status("running")
+        if self._lock is not None:
+            _RUNNING.add(self)
         if self._lock is not None and self._beat_thread is None:
             self._beat_stop.clear()
             self._beat_thread = threading.Thread(target=self._heartbeat_loop, daemon=True,
@@ -593,15 +617,21 @@ class RunFolder:
         except BaseException as exc:
             if self._state == "done":
                 raise
-            interrupt = interruption_in(exc)  # also one that surfaced inside numba
-            if interrupt is not None:
-                self.mark_interrupted(interruption_reason(interrupt))
-                if interrupt is exc:
-                    raise
-                raise interrupt from None
-            reason = f"{type(exc).__name__}: {exc}".strip()
-            self.mark_failed(reason.splitlines()[0] if reason else type(exc).__name__)
-            raise
+            interrupt = self._record_stop(exc)
+            if interrupt is None or interrupt is exc:
+                raise
+            raise interrupt from None
+
+    def _record_stop(self, exc: BaseException) -> KeyboardInterrupt | None:
+        """Mark the run ``interrupted`` when a signal is behind ``exc`` (also one that surfaced
+        inside numba), else ``failed`` with ``exc`` as the reason; returns the interruption."""
+        interrupt = interruption_in(exc)
+        if interrupt is not None:
+            self.mark_interrupted(interruption_reason(interrupt))
+            return interrupt
+        reason = f"{type(exc).__name__}: {exc}".strip()
+        self.mark_failed(reason.splitlines()[0] if reason else type(exc).__name__)
+        return None
 
     # ---------------------------------------------------------------- artifacts
     def artifact_path(self, name: str) -> Path:

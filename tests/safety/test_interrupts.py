@@ -59,6 +59,47 @@ def test_a_swallowed_signal_marks_the_run_interrupted_not_done(tmp_path: Path) -
     assert run.read_status().state == "interrupted"
 
 
+def _status_file(run_dir: Path) -> dict:
+    import json
+
+    return json.loads((run_dir / "status.json").read_text())
+
+
+def test_a_signal_before_the_run_is_guarded_still_marks_it_interrupted(tmp_path: Path) -> None:
+    """``kill`` as soon as status.json said "running": the handler ran between
+    RunFolder.create and the run's failure_guard, and the run stayed "running" (seen in one of
+    six tries of the SIGTERM test)."""
+    out = tmp_path / "r"
+    with pytest.raises(Interrupted), signals_interrupt():
+        run = RunFolder.create(out, method="m", sequence_name="s", sequence_path=tmp_path)
+        os.kill(os.getpid(), signal.SIGTERM)  # the handler raises at the next check
+        with run.failure_guard():
+            pytest.fail("the signal should have landed before the guard")
+    status = _status_file(out)
+    assert (status["state"], status["reason"]) == ("interrupted", "interrupted by SIGTERM")
+    assert RunFolder.create(out, method="m", sequence_name="s", sequence_path=tmp_path,
+                            overwrite=True).read_status().state == "running"  # lock released
+
+
+def test_a_signal_inside_create_after_the_status_went_out(tmp_path: Path, monkeypatch) -> None:
+    mark_running = RunFolder.mark_running
+
+    def mark_running_then_signal(self: RunFolder) -> None:
+        mark_running(self)
+        os.kill(os.getpid(), signal.SIGTERM)
+        raise_if_interrupted()  # where the handler's exception lands is up to Python
+
+    monkeypatch.setattr(RunFolder, "mark_running", mark_running_then_signal)
+    out = tmp_path / "r"
+    with pytest.raises(Interrupted), signals_interrupt():
+        RunFolder.create(out, method="m", sequence_name="s", sequence_path=tmp_path)
+    status = _status_file(out)
+    assert (status["state"], status["reason"]) == ("interrupted", "interrupted by SIGTERM")
+    monkeypatch.undo()
+    assert RunFolder.create(out, method="m", sequence_name="s", sequence_path=tmp_path,
+                            overwrite=True).read_status().state == "running"
+
+
 def test_a_generator_with_a_swallowed_signal_exits_as_interrupted(tmp_path: Path, capsys,
                                                                   monkeypatch) -> None:
     from egs_bench.datasets.sequence import SequenceWriter
