@@ -482,13 +482,17 @@ class RunFolder:
                 ) -> None:
         _RUNNING.discard(self)
         self._beat_stop.set()
-        with self._status_lock:
-            self._write_status(state, reason, tracking_lost)
-        if self._beat_thread is not None and self._beat_thread is not threading.current_thread():
-            self._beat_thread.join(timeout=5)
-        if self._lock is not None:
-            self._lock.release()
-            self._lock = None
+        try:
+            with self._status_lock:
+                self._write_status(state, reason, tracking_lost)
+            beat = self._beat_thread
+            # not alive: a signal may have landed inside its start(), before it ran
+            if beat is not None and beat.is_alive() and beat is not threading.current_thread():
+                beat.join(timeout=5)
+        finally:
+            if self._lock is not None:
+                self._lock.release()
+                self._lock = None
 
     def _heartbeat_loop(self) -> None:
         while not self._beat_stop.wait(HEARTBEAT_S):

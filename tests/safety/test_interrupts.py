@@ -100,6 +100,30 @@ def test_a_signal_inside_create_after_the_status_went_out(tmp_path: Path, monkey
                             overwrite=True).read_status().state == "running"
 
 
+def test_a_signal_inside_the_heartbeat_start_still_marks_and_logs(tmp_path: Path,
+                                                                 monkeypatch) -> None:
+    """The handler can run inside ``Thread.start()`` (it waits for the thread): the thread
+    never started, and joining it raised over the clean-up (no log line, lock kept)."""
+    import threading
+
+    start = threading.Thread.start
+
+    def start_or_signal(self: threading.Thread) -> None:
+        if self.name.startswith("heartbeat"):
+            raise Interrupted(signal.SIGTERM)
+        start(self)
+
+    monkeypatch.setattr(threading.Thread, "start", start_or_signal)
+    out = tmp_path / "r"
+    with pytest.raises(Interrupted), signals_interrupt():
+        RunFolder.create(out, method="m", sequence_name="s", sequence_path=tmp_path)
+    monkeypatch.undo()
+    assert _status_file(out)["state"] == "interrupted"
+    assert "INTERRUPTED: interrupted by SIGTERM" in (out / "log.txt").read_text()
+    assert RunFolder.create(out, method="m", sequence_name="s", sequence_path=tmp_path,
+                            overwrite=True).read_status().state == "running"
+
+
 def test_a_generator_with_a_swallowed_signal_exits_as_interrupted(tmp_path: Path, capsys,
                                                                   monkeypatch) -> None:
     from egs_bench.datasets.sequence import SequenceWriter
