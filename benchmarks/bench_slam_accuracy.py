@@ -12,7 +12,9 @@ asks for (ATE egs / monogs, PSNR egs - monogs).
 
 With several ``--seed`` the table holds the mean over the seeds that finished and the standard
 deviation (``*_std`` columns); ``seeds`` says how many finished of how many were asked for and
-``error`` names each unfinished seed with its state. The ratios use the means.
+``error`` names each unfinished seed with its state. ``code`` is the commit each run was made
+with (``egs_bench.provenance``; ``?`` for runs that predate its recording). The ratios use the
+means.
 
 The tables of docs/notes/slam.md and BENCHMARKS.md were made with
 
@@ -46,10 +48,12 @@ from pathlib import Path
 
 import pandas as pd
 
+from egs_bench.errors import InputError
 from egs_bench.eval.results import read_run_result
 from egs_bench.experiments.spec import LocalOptions, RunSpec, SweepSpec
 from egs_bench.experiments.sweep import run_sweep
 from egs_bench.fileio import write_text_atomic
+from egs_bench.runs.folder import RunFolder
 from egs_bench.runs.registry import get_method
 from egs_bench.slam.config import parse_overrides
 from egs_bench.slam.methods import ConfiguredSlamMethod
@@ -92,11 +96,21 @@ def run_grid(args: argparse.Namespace) -> pd.DataFrame:
         v = r.values
         row["method"] = r.method or spec_.method  # the recorded name (not an import path)
         row |= {"ate_cm": 100 * v["ate"] if "ate" in v else None, "psnr_db": v.get("psnr"),
-                "ssim": v.get("ssim"), "fps": v.get("fps")}
+                "ssim": v.get("ssim"), "fps": v.get("fps"), "code": _code_label(spec_.run_dir)}
         if r.status not in ("ok", "incomplete"):
             row["error"] = f"{r.status}: {r.reason}"[:80]
         rows.append(row)
     return pd.DataFrame(rows)
+
+
+def _code_label(run_dir: str | Path) -> str:
+    """The commit a run was made with, as its first 7 hex digits (``+``: tracked files were
+    modified), or ``?`` where the run folder does not record it."""
+    try:
+        rev = RunFolder.open(run_dir).code_revision
+    except InputError:
+        return "?"
+    return "?" if rev is None else rev["commit"][:7] + ("+" if rev.get("modified") else "")
 
 
 def summarise_seeds(runs: pd.DataFrame) -> pd.DataFrame:
@@ -114,6 +128,9 @@ def summarise_seeds(runs: pd.DataFrame) -> pd.DataFrame:
             out[f"{c}_std"] = grouped[c].std()
     finished = runs["ate_cm"].notna() if "ate_cm" in runs else pd.Series(False, runs.index)
     out["seeds"] = [f"{int(finished[g.index].sum())}/{len(g)}" for _, g in grouped]
+    if "code" in runs:  # which commits the finished seeds ran with (rows may mix code)
+        out["code"] = [", ".join(dict.fromkeys(g.loc[finished[g.index], "code"].dropna()))
+                       or None for _, g in grouped]
     if "error" in runs:
         out["error"] = ["; ".join(f"seed {s}: {e}" for s, e in zip(g["seed"], g["error"],
                                                                     strict=True)

@@ -71,6 +71,7 @@ from egs_bench.geometry import Trajectory, read_tum, write_tum
 from egs_bench.images import read_ldr_image, write_ldr_image
 from egs_bench.interrupts import call_on_interrupt, raise_if_interrupted
 from egs_bench.outputs import prepare_output
+from egs_bench.provenance import code_revision
 
 RUN_FILE = "run.yaml"
 CONFIG_FILE = "config.yaml"
@@ -321,6 +322,7 @@ class RunFolder:
                 "groundtruth": str(Path(groundtruth).resolve()) if groundtruth is not None
                 else None,
                 "egs_bench_version": __version__,
+                "code": code_revision(),
                 "created_utc": _now_utc(),
                 "artifacts": [],
             }
@@ -443,6 +445,15 @@ class RunFolder:
         """What the estimate covers (``run.yaml`` ``estimate``, defaults for own runs)."""
         value = self._info.get("estimate")
         return {**ESTIMATE_DEFAULTS, **(value if isinstance(value, dict) else {})}
+
+    @property
+    def code_revision(self) -> dict[str, Any] | None:
+        """``{"commit", "modified"}`` of the egs_bench checkout that wrote the run
+        (:func:`egs_bench.provenance.code_revision`); None for runs written from an installed
+        package, without git, or before run folders recorded it."""
+        value = self._info.get("code")
+        return dict(value) if isinstance(value, dict) and isinstance(value.get("commit"), str) \
+            else None
 
     @property
     def info(self) -> dict[str, Any]:

@@ -9,6 +9,8 @@ from pathlib import Path
 import pandas as pd
 from sweep_fixtures import make_sequence, worker_env
 
+from egs_bench.provenance import code_revision
+
 SCRIPT = Path(__file__).resolve().parents[2] / "benchmarks" / "bench_slam_accuracy.py"
 METHODS = "sweep_fixtures:FAKE_EGS,sweep_fixtures:FAKE_MONOGS"
 
@@ -32,8 +34,11 @@ def test_status_run_and_resume(tmp_path: Path, monkeypatch) -> None:
 
     first = _bench(cwd=tmp_path)
     assert first.returncode == 0, first.stderr
-    runs = pd.read_csv(tmp_path / "out/runs.csv").set_index("method")
+    runs = pd.read_csv(tmp_path / "out/runs.csv", dtype={"code": str}).set_index("method")
     assert set(runs.index) == {"egs", "monogs"}
+    rev = code_revision()  # both runs name the commit this checkout is at
+    assert set(runs["code"]) == {"?" if rev is None else
+                                 rev["commit"][:7] + ("+" if rev["modified"] else "")}
     assert runs["ate_cm"].notna().all() and "error" not in runs
     # the fake estimates are the ground truth plus 1 cm / 3 cm of noise per axis
     assert runs.loc["egs", "ate_cm"] < runs.loc["monogs", "ate_cm"]
@@ -59,10 +64,14 @@ def test_seed_summary_counts_only_finished_runs(capsys) -> None:
     bench = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(bench)
     runs = pd.DataFrame([
-        {"sequence": "s", "method": "egs", "seed": 0, "ate_cm": 2.0, "psnr_db": 30.0},
-        {"sequence": "s", "method": "egs", "seed": 1, "ate_cm": 4.0, "psnr_db": 28.0},
-        {"sequence": "s", "method": "egs", "seed": 2, "error": "running: status is 'running'"},
-        {"sequence": "s", "method": "monogs", "seed": 0, "ate_cm": 5.0, "psnr_db": 26.0},
+        {"sequence": "s", "method": "egs", "seed": 0, "ate_cm": 2.0, "psnr_db": 30.0,
+         "code": "d9f4d77"},
+        {"sequence": "s", "method": "egs", "seed": 1, "ate_cm": 4.0, "psnr_db": 28.0,
+         "code": "9609709+"},
+        {"sequence": "s", "method": "egs", "seed": 2, "error": "running: status is 'running'",
+         "code": "9609709+"},
+        {"sequence": "s", "method": "monogs", "seed": 0, "ate_cm": 5.0, "psnr_db": 26.0,
+         "code": "?"},
         {"sequence": "s", "method": "monogs", "seed": 1, "error": "pending: not started"},
         {"sequence": "s", "method": "monogs", "seed": 2, "error": "pending: not started"},
     ])
@@ -70,6 +79,8 @@ def test_seed_summary_counts_only_finished_runs(capsys) -> None:
     assert table.loc["egs", "ate_cm"] == 3.0 and table.loc["egs", "seeds"] == "2/3"
     assert table.loc["egs", "error"] == "seed 2: running: status is 'running'"
     assert table.loc["monogs", "seeds"] == "1/3"
+    # the commits of the finished seeds, in seed order, each once
+    assert table.loc["egs", "code"] == "d9f4d77, 9609709+" and table.loc["monogs", "code"] == "?"
     assert table.loc["monogs", "error"] == ("seed 1: pending: not started; "
                                             "seed 2: pending: not started")
     bench.print_ratios(table.reset_index(), [], "preset cpu")
