@@ -45,15 +45,14 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from typing import Any
 
 import pandas as pd
 
-from egs_bench.errors import InputError
 from egs_bench.eval.results import read_run_result
 from egs_bench.experiments.spec import LocalOptions, RunSpec, SweepSpec
 from egs_bench.experiments.sweep import run_sweep
 from egs_bench.fileio import write_text_atomic
-from egs_bench.runs.folder import RunFolder
 from egs_bench.runs.registry import get_method
 from egs_bench.slam.config import parse_overrides
 from egs_bench.slam.methods import ConfiguredSlamMethod
@@ -96,20 +95,16 @@ def run_grid(args: argparse.Namespace) -> pd.DataFrame:
         v = r.values
         row["method"] = r.method or spec_.method  # the recorded name (not an import path)
         row |= {"ate_cm": 100 * v["ate"] if "ate" in v else None, "psnr_db": v.get("psnr"),
-                "ssim": v.get("ssim"), "fps": v.get("fps"), "code": _code_label(spec_.run_dir)}
+                "ssim": v.get("ssim"), "fps": v.get("fps"), "code": _code_label(r.code_revision)}
         if r.status not in ("ok", "incomplete"):
             row["error"] = f"{r.status}: {r.reason}"[:80]
         rows.append(row)
     return pd.DataFrame(rows)
 
 
-def _code_label(run_dir: str | Path) -> str:
+def _code_label(rev: dict[str, Any] | None) -> str:
     """The commit a run was made with, as its first 7 hex digits (``+``: tracked files were
     modified), or ``?`` where the run folder does not record it."""
-    try:
-        rev = RunFolder.open(run_dir).code_revision
-    except InputError:
-        return "?"
     return "?" if rev is None else rev["commit"][:7] + ("+" if rev.get("modified") else "")
 
 

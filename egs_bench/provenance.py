@@ -45,11 +45,11 @@ def code_revision(package_root: Path = PACKAGE_ROOT) -> dict[str, str | bool] | 
 def _code_revision_cached(package_root: Path) -> dict[str, str | bool] | None:
     # Cached: one process writes many run folders from the same code; the first call's answer
     # stands for the process (a checkout edited later does not change what it imported).
-    top = _git(package_root, "rev-parse", "--show-toplevel")
-    commit = _git(package_root, "rev-parse", "--verify", "HEAD")
-    if top is None or commit is None:
+    commit = _git(package_root, "rev-parse", "--verify", "HEAD")  # fails outside a checkout
+    if commit is None:
         return None
-    status = _git(Path(top), "status", "--porcelain", "--untracked-files=no")
+    # status covers the whole work tree from any folder inside it
+    status = _git(package_root, "status", "--porcelain", "--untracked-files=no")
     if status is None:
         return None
     return {"commit": commit, "modified": bool(status)}

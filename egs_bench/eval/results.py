@@ -110,6 +110,8 @@ class RunResult:
         reason: why the run is not ``ok`` (one line, names the file when a file is at fault).
         values: metric key -> value in the stored unit (ATE metres, PSNR dB, ...).
         frames_processed, frames_in_sequence: coverage from evaluation (``None`` if unknown).
+        code_revision: ``{"commit", "modified"}`` of the code that wrote the run
+            (:attr:`RunFolder.code_revision`; ``None`` when not recorded).
     """
 
     path: Path
@@ -125,6 +127,7 @@ class RunResult:
     values: dict[str, float] = field(default_factory=dict)
     frames_processed: int | None = None
     frames_in_sequence: int | None = None
+    code_revision: dict[str, Any] | None = None
 
     @property
     def complete(self) -> bool:
@@ -259,7 +262,7 @@ def read_run_result(path: Path, root: Path, protocol: str = DEFAULT_PROTOCOL,
         run = RunFolder.open(path)
     except (EgsBenchError, OSError, ValueError) as exc:
         return RunResult(**base, status="broken", reason=str(exc))
-    base.update(method=run.method, sequence=run.sequence_name)
+    base.update(method=run.method, sequence=run.sequence_name, code_revision=run.code_revision)
     try:
         _check_text_files(path, _TEXT_FILES)
     except EgsBenchError as exc:
