@@ -1,7 +1,8 @@
 """CPU backend: the numba tile kernels wrapped as a ``torch.autograd.Function``.
 
-The projection stays in PyTorch (autograd gives the pose gradient); this module composites the
-projected Gaussians and back-propagates to the 2-D means, conics, depths, opacities and colours.
+The projection is :mod:`egs_bench.render.numba_projection`'s fused kernel pair; this module
+composites the projected Gaussians and back-propagates to the 2-D means, conics, depths,
+opacities and colours.
 Compiled kernels are cached on disk (``NUMBA_CACHE_DIR``); float32 and float64 each compile once.
 """
 

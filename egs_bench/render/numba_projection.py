@@ -8,8 +8,11 @@ operations over [C, N] tensors, and autograd's replay of them, took about 40 % o
 Gaussians that keeps every intermediate in registers, and its derivative written out.
 
 Conventions and results are those of ``project_gaussians`` (same outputs, same culling, same
-gradients including the ``torch.where`` / clamp branches); arithmetic is float64 inside the
-kernels whatever the input dtype. Gradients of the world-to-camera matrices are summed over
+gradients including the ``torch.where`` / clamp branches). The camera-space point is computed,
+and compared with the near and far planes, in the input dtype in the same order as the
+reference, so both cull the same Gaussians (a float32 point at z = 0.2 is on a 0.2 m near plane
+in both, not in front of it); from the perspective division on the arithmetic is float64.
+Gradients of the world-to-camera matrices are summed over
 fixed chunks of Gaussians and then over chunks in order, so they are deterministic and do not
 depend on the thread count.
 """
@@ -308,25 +311,35 @@ def _np(x: torch.Tensor) -> np.ndarray:
     return x.detach().contiguous().numpy()
 
 
+def _kernel_arrays(*tensors: torch.Tensor) -> tuple[np.ndarray, ...]:
+    """The inputs as contiguous numpy arrays in the dtype of the first (``means``)."""
+    return tuple(_np(t.to(tensors[0].dtype)) for t in tensors)
+
+
 class _ProjectFused(torch.autograd.Function):
     @staticmethod
     def forward(ctx: Any, means: torch.Tensor, quats: torch.Tensor, scales: torch.Tensor,
                 opacities: torch.Tensor, viewmats: torch.Tensor, Ks: torch.Tensor,  # noqa: N803
                 width: int, height: int, near: float, far: float
                 ) -> tuple[torch.Tensor, ...]:
-        arrs = tuple(_np(t.to(means.dtype)) for t in (means, quats, scales, opacities, viewmats,
-                                                       Ks))
+        arrs = _kernel_arrays(means, quats, scales, opacities, viewmats, Ks)
         C, N = viewmats.shape[0], means.shape[0]
         dt = arrs[0].dtype
+        # planes in the input dtype: numba would compare a float32 z with a float64 plane
+        near_t, far_t = dt.type(near), dt.type(far)
         means2d = np.empty((C, N, 2), dt)
         conics = np.empty((C, N, 3), dt)
         depths = np.empty((C, N), dt)
         valid = np.empty((C, N), np.bool_)
         extents = np.empty((C, N, 2), dt)
         radii = np.empty((C, N), np.int32)
-        project_fwd(*arrs, width, height, near, far, RC.EPS2D, RC.FOV_CLAMP, RC.ALPHA_MIN,
+        project_fwd(*arrs, width, height, near_t, far_t, RC.EPS2D, RC.FOV_CLAMP, RC.ALPHA_MIN,
                     means2d, conics, depths, valid, extents, radii)
-        ctx.saved = (arrs, width, height, near, far)
+        # saved through autograd, not as numpy views: an in-place change of an input before
+        # backward then raises, as it does for the PyTorch projection, instead of silently
+        # differentiating at the changed values
+        ctx.save_for_backward(means, quats, scales, opacities, viewmats, Ks)
+        ctx.frame = (width, height, near_t, far_t)
         ctx.dtype = means.dtype
         out = tuple(torch.from_numpy(a) for a in (means2d, conics, depths, valid, extents,
                                                   radii))
@@ -337,8 +350,8 @@ class _ProjectFused(torch.autograd.Function):
     def backward(ctx: Any, g_means2d: torch.Tensor | None, g_conics: torch.Tensor | None,
                  g_depths: torch.Tensor | None, *_non_differentiable: Any
                  ) -> tuple[torch.Tensor | None, ...]:
-        arrs, width, height, near, far = ctx.saved
-        means, quats, scales, _, viewmats, Ks = arrs  # noqa: N806
+        width, height, near, far = ctx.frame
+        means, quats, scales, _, viewmats, Ks = _kernel_arrays(*ctx.saved_tensors)  # noqa: N806
         C, N = viewmats.shape[0], means.shape[0]
         dt = means.dtype
 
