@@ -338,7 +338,7 @@ class _ProjectFused(torch.autograd.Function):
         # saved through autograd, not as numpy views: an in-place change of an input before
         # backward then raises, as it does for the PyTorch projection, instead of silently
         # differentiating at the changed values
-        ctx.save_for_backward(means, quats, scales, opacities, viewmats, Ks)
+        ctx.save_for_backward(means, quats, scales, viewmats, Ks)  # opacities: forward only
         ctx.frame = (width, height, near_t, far_t)
         ctx.dtype = means.dtype
         out = tuple(torch.from_numpy(a) for a in (means2d, conics, depths, valid, extents,
@@ -351,7 +351,7 @@ class _ProjectFused(torch.autograd.Function):
                  g_depths: torch.Tensor | None, *_non_differentiable: Any
                  ) -> tuple[torch.Tensor | None, ...]:
         width, height, near, far = ctx.frame
-        means, quats, scales, _, viewmats, Ks = _kernel_arrays(*ctx.saved_tensors)  # noqa: N806
+        means, quats, scales, viewmats, Ks = _kernel_arrays(*ctx.saved_tensors)  # noqa: N806
         C, N = viewmats.shape[0], means.shape[0]
         dt = means.dtype
 
