@@ -30,28 +30,34 @@ invocations, see BENCHMARKS.md).
 ``--set`` overrides configuration fields of every (built-in) method, as ``egs-bench run --set``.
 
 The runs go through ``egs-bench sweep``'s machinery (:mod:`egs_bench.experiments`): one process
-per run, ``--jobs`` runs in parallel sharing the cores (one thread each), run folders under
-``<out>/runs/<seq>/<method>/seed<k>``, and a second invocation skips runs that finished with the
-same configuration (``--force`` reruns them, e.g. after a code change; ``--retry-failed`` reruns
-only the failed ones). ``--status`` starts
-nothing and tabulates the runs as they are (unfinished ones carry their state in ``error``):
-for a long benchmark running in the background, or several invocations sharing one ``--out``.
+per run, ``--jobs`` runs in parallel sharing the CPU budget (each gets the budget divided by
+``--jobs`` threads), run folders under ``<out>/runs/<seq>/<method>/seed<k>``, and a second
+invocation skips runs that finished with the same configuration (``--force`` reruns them, e.g.
+after a code change; ``--retry-failed`` reruns only the failed ones). Each row's numbers come
+from a run the sweep reports ``done`` for this invocation's configuration: a folder made with
+another preset or ``--set`` (``stale``) or by something else (``conflict``) is named in
+``error``, never read. ``--status`` starts and evaluates nothing and tabulates the runs as they
+are (unfinished ones carry their state in ``error``): for a long benchmark running in the
+background, or several invocations sharing one ``--out``. ``<out>/sweep_summary.md`` lists
+every run of the invocation (both grids).
 
 Sequences are folders or names under $EGS_BENCH_DATA (built-in synthetic names are generated
-on first use).
+on first use; ``--status`` lists the runs of one not generated yet as pending).
 """
 
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 from typing import Any
 
 import pandas as pd
 
+from egs_bench.errors import EgsBenchError
 from egs_bench.eval.results import read_run_result
-from egs_bench.experiments.spec import LocalOptions, RunSpec, SweepSpec
-from egs_bench.experiments.sweep import run_sweep
+from egs_bench.experiments.spec import DEVICES, LocalOptions, RunSpec, SweepSpec
+from egs_bench.experiments.sweep import run_sweep, write_summary
 from egs_bench.fileio import write_text_atomic
 from egs_bench.runs.registry import get_method
 from egs_bench.slam.config import parse_overrides
@@ -71,7 +77,8 @@ def run_grid(args: argparse.Namespace) -> pd.DataFrame:
     main = [m for m in methods if m in MAIN_METHODS]
     ablations = [m for m in methods if m not in MAIN_METHODS]
     grids = [(main, args.seq), (ablations, [s for s in args.seq if s in ablation_seqs])]
-    specs: list[RunSpec] = []  # this invocation's runs only (not older runs in the folder)
+    rows: list[dict[str, object]] = []  # this invocation's runs only (not older runs)
+    summaries = []
     for grid_methods, seqs in grids:
         if not grid_methods or not seqs:
             continue
@@ -82,24 +89,38 @@ def run_grid(args: argparse.Namespace) -> pd.DataFrame:
                          local=LocalOptions(jobs=args.jobs, threads_per_job=None))
         report = run_sweep(spec, force=args.force, retry_failed=args.retry_failed,
                            status_only=args.status, say=print)
-        specs += report.runs
-    rows = []
-    for spec_ in specs:
-        # names from the spec: a run not started yet has no folder to read them from
-        row: dict[str, object] = {"sequence": spec_.sequence_name, "method": spec_.method,
-                                  "seed": spec_.seed}
-        if not Path(spec_.run_dir).is_dir():
-            rows.append({**row, "error": "pending: not started"})
-            continue
-        r = read_run_result(Path(spec_.run_dir), args.out / "runs")
-        v = r.values
-        row["method"] = r.method or spec_.method  # the recorded name (not an import path)
-        row |= {"ate_cm": 100 * v["ate"] if "ate" in v else None, "psnr_db": v.get("psnr"),
-                "ssim": v.get("ssim"), "fps": v.get("fps"), "code": _code_label(r.code_revision)}
-        if r.status not in ("ok", "incomplete"):
-            row["error"] = f"{r.status}: {r.reason}"[:80]
-        rows.append(row)
+        summaries.append(report.summary)
+        states = report.summary.set_index("run")
+        rows += [run_row(r, str(states.loc[r.run_id, "state"]),
+                         str(states.loc[r.run_id, "reason"] or ""), args.out)
+                 for r in report.runs]
+        rows += [{"sequence": seq, "method": m, "seed": seed,
+                  "error": "pending: sequence not generated yet"}
+                 for seq in report.ungenerated for m in grid_methods for seed in args.seeds]
+    if summaries:  # one summary of both grids (each run_sweep wrote only its own)
+        write_summary(args.out, pd.concat(summaries, ignore_index=True))
     return pd.DataFrame(rows)
+
+
+def run_row(spec: RunSpec, state: str, reason: str, out: Path) -> dict[str, object]:
+    """One table row: the run's metrics when the sweep reports it ``done`` for this
+    configuration, else its state and reason in ``error`` (a stale or conflicting folder holds
+    another configuration's numbers and is not read). Nothing is evaluated here: the sweep's
+    worker evaluates every finished run."""
+    # names from the spec: a run not started yet has no folder to read them from
+    row: dict[str, object] = {"sequence": spec.sequence_name, "method": spec.method,
+                              "seed": spec.seed}
+    if state != "done":
+        return {**row, "error": (f"{state}: {reason}" if reason else
+                                 "pending: not started" if state == "pending" else state)[:80]}
+    r = read_run_result(Path(spec.run_dir), out / "runs", spec.protocol, evaluate_missing=False)
+    v = r.values
+    row["method"] = r.method or spec.method  # the recorded name (not an import path)
+    row |= {"ate_cm": 100 * v["ate"] if "ate" in v else None, "psnr_db": v.get("psnr"),
+            "ssim": v.get("ssim"), "fps": v.get("fps"), "code": _code_label(r.code_revision)}
+    if r.status not in ("ok", "incomplete"):
+        row["error"] = f"{r.status}: {r.reason}"[:80]
+    return row
 
 
 def _code_label(rev: dict[str, Any] | None) -> str:
@@ -166,7 +187,7 @@ def main() -> None:
     ap.add_argument("--seq", action="append", required=True, help="sequence folder or name")
     ap.add_argument("--methods", default=",".join(DEFAULT_METHODS))
     ap.add_argument("--preset", default="cpu", choices=["cpu", "paper"])
-    ap.add_argument("--device", default="cpu")
+    ap.add_argument("--device", default="cpu", choices=list(DEVICES))
     ap.add_argument("--seed", dest="seeds", type=int, action="append", default=None,
                     help="seed of every run (repeat for several: mean and std in the table)")
     ap.add_argument("--max-frames", type=int, default=None)
@@ -188,14 +209,21 @@ def main() -> None:
                     help="sequences without blur: left out of the mean ratios, checked against "
                          "the 'not worse than monogs by more than 10 %% ATE' rule instead")
     args = ap.parse_args()
-    args.options = parse_overrides(args.overrides)
     args.seeds = args.seeds or [0]
+    for flag, values in (("--seed", args.seeds), ("--seq", args.seq),
+                         ("--methods", args.methods.split(","))):
+        twice = sorted({str(v) for v in values if values.count(v) > 1})
+        if twice:
+            ap.error(f"{flag} names {', '.join(twice)} more than once")
     args.out = args.out.resolve()  # the sweep reports absolute run folders
-    if args.options and any(not isinstance(get_method(m), ConfiguredSlamMethod)
-                            for m in args.methods.split(",")):
-        ap.error("--set applies to built-in methods only")
-
-    runs = run_grid(args)
+    try:
+        args.options = parse_overrides(args.overrides)
+        if args.options and any(not isinstance(get_method(m), ConfiguredSlamMethod)
+                                for m in args.methods.split(",")):
+            ap.error("--set applies to built-in methods only")
+        runs = run_grid(args)
+    except EgsBenchError as exc:  # a bad --seq, method, --set or output: one line, no traceback
+        sys.exit(f"{Path(sys.argv[0]).name}: error: {exc}")
     args.out.mkdir(parents=True, exist_ok=True)
     write_text_atomic(args.out / "runs.csv", runs.to_csv(index=False))
     df = summarise_seeds(runs)

@@ -77,8 +77,7 @@ def get_protocol(name: str) -> Protocol:
     Raises:
         ConfigError: unknown name (the message lists the known ones).
     """
-    try:
-        return PROTOCOLS[name]
-    except KeyError:
+    if not isinstance(name, str) or name not in PROTOCOLS:  # a YAML list is not hashable
         raise ConfigError(f"unknown protocol {name!r}; choose one of "
-                          f"{', '.join(sorted(PROTOCOLS))}") from None
+                          f"{', '.join(sorted(PROTOCOLS))}")
+    return PROTOCOLS[name]

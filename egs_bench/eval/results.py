@@ -34,7 +34,7 @@ from pathlib import Path
 from typing import Any
 
 from egs_bench.errors import EgsBenchError, InputError, reraise_interruption
-from egs_bench.eval.protocols import DEFAULT_PROTOCOL
+from egs_bench.eval.protocols import DEFAULT_PROTOCOL, get_protocol
 from egs_bench.runs.folder import (
     CONFIG_FILE,
     KEYFRAMES_FILE,
@@ -317,8 +317,11 @@ def collect_results(runs_root: str | Path, protocol: str = DEFAULT_PROTOCOL,
     missing ``metrics.json`` is written; another protocol's file is left alone).
 
     Raises:
+        ConfigError: ``protocol`` is not a known protocol (checked first: an unknown name would
+            otherwise only show as every run being "not evaluated").
         InputError: ``runs_root`` is missing or holds no run folder.
     """
+    get_protocol(protocol)
     root = Path(runs_root)
     paths = find_runs(root)
     if not paths:

@@ -11,6 +11,7 @@ time and failure reason, plus ATE and PSNR where evaluated, to ``<out>/sweep_sum
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 from collections.abc import Callable, Mapping, Sequence
@@ -20,7 +21,7 @@ from typing import Any
 
 import pandas as pd
 
-from egs_bench.errors import ConfigError, EgsBenchError
+from egs_bench.errors import ConfigError, EgsBenchError, InputError
 from egs_bench.eval.results import metric_values
 from egs_bench.experiments.backends import Outcome, plan_slots, run_local, run_slurm
 from egs_bench.experiments.spec import RunSpec, SweepSpec, expand, in_shard
@@ -51,6 +52,10 @@ class SweepReport:
         selected: run ids of this invocation's shard.
         summary: the summary table (one row per selected run).
         summary_md: the same as Markdown (also written to ``sweep_summary.md``).
+        outcomes: each started run's outcome by run id.
+        ungenerated: built-in sequence names of the sweep not generated yet (only with
+            ``dry_run`` / ``status_only``, which generate nothing; their runs are not in
+            ``runs``).
     """
 
     out: Path
@@ -59,6 +64,7 @@ class SweepReport:
     summary: pd.DataFrame
     summary_md: str = ""
     outcomes: dict[str, Outcome] = field(default_factory=dict)
+    ungenerated: list[str] = field(default_factory=list)
 
     @property
     def all_done(self) -> bool:
@@ -66,27 +72,48 @@ class SweepReport:
 
 
 def resolve_sequences(spec: SweepSpec, progress: bool = False, generate: bool = True
-                      ) -> dict[str, Path]:
-    """Each sequence entry of the sweep -> its folder (generating built-in names once, unless
-    ``generate`` is false)."""
-    from egs_bench.datasets.registry import resolve_sequence
+                      ) -> tuple[dict[str, Path], list[str]]:
+    """Each sequence entry of the sweep -> its folder (generating built-in names once), and,
+    when ``generate`` is false, the built-in names not generated yet (left out of the mapping).
 
-    return {entry: Path(resolve_sequence(entry, generate=generate, progress=progress))
-            for entry in spec.sequences}
+    Raises:
+        InputError: an entry is neither a folder, a name under the data root, nor built in.
+    """
+    from egs_bench.datasets.registry import BUILTIN_SEQUENCES, resolve_sequence
+
+    found: dict[str, Path] = {}
+    ungenerated: list[str] = []
+    for entry in spec.sequences:
+        try:
+            found[entry] = Path(resolve_sequence(entry, generate=generate, progress=progress))
+        except InputError:
+            if generate or entry not in BUILTIN_SEQUENCES:
+                raise
+            ungenerated.append(entry)
+    return found, ungenerated
 
 
 def prepare(spec: SweepSpec, out: Path | None = None,
             extra_options: Mapping[str, Any] | None = None, progress: bool = False,
-            generate: bool = True) -> list[RunSpec]:
-    """Resolve the sequences and expand the grid into run specs."""
-    return expand(spec, resolve_sequences(spec, progress, generate), out, extra_options)
+            generate: bool = True) -> tuple[list[RunSpec], list[str]]:
+    """Resolve the sequences and expand the grid into run specs; also returns the built-in
+    sequences not generated yet (only when ``generate`` is false; their runs are left out)."""
+    found, ungenerated = resolve_sequences(spec, progress, generate)
+    available = dataclasses.replace(
+        spec, sequences=tuple(e for e in spec.sequences if e in found))
+    return expand(available, found, out, extra_options), ungenerated
 
 
-def _metrics(run_dir: Path) -> tuple[float, float]:
-    """ATE [cm] and PSNR [dB] of a run's ``metrics.json`` (NaN where absent or unreadable)."""
+def _metrics(run_dir: Path, protocol: str) -> tuple[float, float]:
+    """ATE [cm] and PSNR [dB] of a run's ``metrics.json`` under ``protocol`` (NaN where absent,
+    unreadable or made under another protocol)."""
     path = run_dir / "metrics.json"
     try:
-        values = metric_values(json.loads(path.read_text()), path)
+        data = json.loads(path.read_text())
+        proto = data.get("protocol") if isinstance(data, dict) else None
+        if not isinstance(proto, dict) or proto.get("name") != protocol:
+            return math.nan, math.nan
+        values = metric_values(data, path)
     except (OSError, ValueError, UnicodeDecodeError, EgsBenchError):
         return math.nan, math.nan
     return 100.0 * values.get("ate", math.nan), values.get("psnr", math.nan)
@@ -104,9 +131,11 @@ def run_row(spec: RunSpec, outcome: Outcome | None = None, invoked: bool = True
             ) -> dict[str, Any]:
     """One summary row: identity, state, this invocation's action, wall time, reason, ATE/PSNR.
 
-    States: ``done``, ``failed``, ``tracking_lost``, ``interrupted``, ``timeout``, ``running``
-    (a process holds the run), ``pending`` (never started), ``stale`` (finished with another
-    configuration), ``conflict`` (a folder the sweep did not create).
+    States: ``done``, ``failed`` (the method, or the evaluation of its output: reason
+    ``evaluation: ...``), ``tracking_lost``, ``interrupted``, ``timeout``, ``running`` (a
+    process holds the run), ``pending`` (never started), ``stale`` (finished with another
+    configuration), ``conflict`` (a folder the sweep did not create). A ``done`` row whose
+    metrics were made under another protocol than the sweep's has no ATE/PSNR and says so.
     """
     run_dir = Path(spec.run_dir)
     record = read_record(run_dir)
@@ -126,7 +155,10 @@ def run_row(spec: RunSpec, outcome: Outcome | None = None, invoked: bool = True
             at = _progress(run_dir)
             reason += f", at {at}" if at else ""
         folder_state = run_state(run_dir)
-        if state in ("done", "failed", "tracking_lost") and folder_state is not None:
+        # the folder refines the record (a tracking loss; a folder changed since), except that
+        # a failed evaluation fails a run whose method finished
+        if folder_state is not None and (state == "done" or (
+                state in ("failed", "tracking_lost") and folder_state != "done")):
             state = folder_state
         reason = reason or record.get("reason") or record.get("evaluation_error") or ""
         if record.get("evaluation_error"):
@@ -134,7 +166,7 @@ def run_row(spec: RunSpec, outcome: Outcome | None = None, invoked: bool = True
         if decision.action == EVALUATE:
             reason = decision.why
         wall = float(record.get("run_wall_s", math.nan)) + float(record.get("eval_wall_s", 0.0))
-    ate, psnr = _metrics(run_dir) if state == "done" else (math.nan, math.nan)
+    ate, psnr = _metrics(run_dir, spec.protocol) if state == "done" else (math.nan, math.nan)
     action = outcome.action if outcome is not None else (
         "skipped" if invoked and decision.action not in STARTS_WORK and state == "done" else "")
     if outcome is not None and outcome.note and not reason:
@@ -209,7 +241,10 @@ def run_sweep(spec: SweepSpec, *, out: Path | None = None,
     if backend not in BACKENDS:
         raise ConfigError(f"unknown backend {backend!r}; choose one of {', '.join(BACKENDS)}")
     out = (out or spec.out).resolve()
-    runs = prepare(spec, out, extra_options, generate=not (status_only or dry_run))
+    runs, ungenerated = prepare(spec, out, extra_options, generate=not (status_only or dry_run))
+    for entry in ungenerated:
+        say(f"{entry}: built-in sequence not generated yet (the sweep generates it before its "
+            "runs); its runs are not listed")
     selected = [r for r in runs if in_shard(r, shard)]
     outcomes: dict[str, Outcome] = {}
     if not status_only:
@@ -235,4 +270,4 @@ def run_sweep(spec: SweepSpec, *, out: Path | None = None,
                                  retry_failed=retry_failed, wait=wait, say=say)
     df = summary_table(selected, outcomes, invoked=not status_only)
     md = write_summary(out, df)
-    return SweepReport(out, runs, [r.run_id for r in selected], df, md, outcomes)
+    return SweepReport(out, runs, [r.run_id for r in selected], df, md, outcomes, ungenerated)

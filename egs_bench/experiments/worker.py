@@ -8,13 +8,18 @@ executed twice at once, even by two sweeps or a resubmitted cluster job) the wor
    a finished run with the same configuration hash is skipped; a run with another hash is
    ``stale`` and left alone unless forced; a folder the sweep did not create is a ``conflict``
    and never touched; an interrupted or killed run (status still ``running``) is run again;
-   a run whose method finished (status ``done``) but whose evaluation was interrupted is only
-   evaluated; a failed run is kept unless ``--retry-failed``;
-2. moves a run folder it is going to replace (always one this sweep created) out of the way;
+   a run whose method finished (status ``done``) but whose evaluation was interrupted, or was
+   made under another protocol than the sweep's, is only evaluated; a failed run is kept unless
+   ``--retry-failed`` (a run whose method finished but whose evaluation failed or timed out is
+   then only evaluated again);
+2. deletes what the sweep and the method wrote into a run folder it is going to replace (always
+   one this sweep created); a folder that also holds files egs-bench did not write is left
+   as it is and the run fails, naming them;
 3. writes the ``sweep.json`` record, runs the method (SIGTERM, e.g. a cluster time limit, is
    handled like Ctrl-C: the run folder and the record are marked ``interrupted``), evaluates a
    finished run with the sweep's protocol, and writes the final record with the state, the
-   reason of a failure and the wall time.
+   reason of a failure and the wall time. A failed evaluation fails the run (state
+   ``failed``, reason ``evaluation: ...``): a run without metrics is not a result.
 
 The worker's output (progress, numba/torch messages) goes to ``<run>/worker.log``. Thread
 counts come from the environment the backend sets (``OMP_NUM_THREADS``, ``NUMBA_NUM_THREADS``,
@@ -26,10 +31,8 @@ from __future__ import annotations
 import argparse
 import contextlib
 import datetime as _dt
-import fcntl
 import json
 import os
-import shutil
 import socket
 import sys
 import time
@@ -41,10 +44,15 @@ from typing import Any
 from egs_bench.errors import EgsBenchError, interruption_reason, reraise_interruption
 from egs_bench.eval.results import SWEEP_RECORD_FILE
 from egs_bench.experiments.spec import STATE_DIR, RunSpec
-from egs_bench.fileio import write_text_atomic
+from egs_bench.fileio import FileLock, owner_note, write_text_atomic
+from egs_bench.fileio import lock_is_held as _file_lock_is_held
 from egs_bench.interrupts import raise_if_interrupted, signals_interrupt
+from egs_bench.outputs import RUN_PRELUDE_FILES
 
 WORKER_LOG = "worker.log"
+# how long a starting worker keeps trying for its run's lock: a status probe (``egs-bench sweep
+# --status`` from another shell) holds it for microseconds, which must not turn the worker away
+LOCK_GRACE_S = 2.0
 # exit codes of the worker process
 EXIT_DONE, EXIT_FAILED, EXIT_BUSY, EXIT_NOT_RUN, EXIT_INTERRUPTED = 0, 10, 11, 12, 13
 
@@ -118,57 +126,82 @@ def decide(spec: RunSpec, force: bool = False, retry_failed: bool = False) -> De
                                f"{record.get('config_hash')} != {spec.config_hash}); kept: "
                                "rerun with --force or use another --out")
     state = run_state(run_dir)
+    recorded = record.get("state")
     # a record still "running" means the worker died (the caller holds or tested the lock);
     # the method marks its folder done only after writing every output, so a done folder under
     # an unfinished record lost only its evaluation (hours of SLAM are not redone for that)
-    if record.get("state") in ("interrupted", "running") or state in (None, "running"):
+    if recorded in ("interrupted", "running") or state in (None, "running"):
         if state == "done" and not force:
             return Decision(EVALUATE, "the method finished; its evaluation was interrupted")
         return Decision(RUN, "interrupted before it finished")
-    if state == "done":
-        return Decision(RUN, "--force") if force else Decision(SKIP, "finished earlier")
-    if force or retry_failed:
+    if force:
+        return Decision(RUN, "--force")
+    if state == "done" and recorded == "done":
+        evaluated = record.get("evaluated")
+        if evaluated == spec.protocol:
+            return Decision(SKIP, "finished earlier")
+        if evaluated is not None:  # metrics.json holds one protocol: the sweep's replaces it
+            return Decision(EVALUATE, f"evaluated under protocol {evaluated!r}; the sweep "
+                                      f"asks for {spec.protocol!r}")
+    if state == "done":  # the method finished, its evaluation failed or timed out
+        if retry_failed:
+            return Decision(EVALUATE, "retrying the failed evaluation of a finished run")
+        return Decision(KEEP_FAILED, "its evaluation failed earlier (evaluate again with "
+                                     "--retry-failed)")
+    if retry_failed:
         return Decision(RUN, "retrying a failed run")
     return Decision(KEEP_FAILED, "failed earlier (rerun with --retry-failed)")
 
 
+def _lock_path(spec: RunSpec) -> Path:
+    return Path(spec.sweep_dir) / STATE_DIR / "locks" / f"{spec.key}.lock"
+
+
 @contextlib.contextmanager
-def run_lock(spec: RunSpec) -> Iterator[bool]:
-    """Exclusive, non-blocking lock of one run (fcntl; released when the process dies).
+def run_lock(spec: RunSpec, grace_s: float = 0.0) -> Iterator[bool]:
+    """Exclusive lock of one run (:class:`~egs_bench.fileio.FileLock`; released when the
+    process dies), tried for up to ``grace_s`` seconds.
 
     Yields True when this process holds the lock, False when another process does.
     """
-    lock_dir = Path(spec.sweep_dir) / STATE_DIR / "locks"
-    lock_dir.mkdir(parents=True, exist_ok=True)
-    with open(lock_dir / f"{spec.key}.lock", "a+") as f:
-        try:
-            fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
+    path = _lock_path(spec)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    lock = FileLock(path)
+    deadline = time.monotonic() + grace_s
+    while not lock.acquire(owner_note()):
+        if time.monotonic() >= deadline:
             yield False
             return
-        try:
-            yield True
-        finally:
-            fcntl.flock(f, fcntl.LOCK_UN)
+        time.sleep(0.05)
+    try:
+        yield True
+    finally:
+        lock.release()
 
 
 def lock_is_held(spec: RunSpec) -> bool:
-    """Whether some process currently holds the run's lock."""
-    with run_lock(spec) as mine:
-        return not mine
+    """Whether some process currently holds the run's lock (a shared-lock probe that creates
+    nothing, so it works on a read-only sweep folder)."""
+    return bool(_file_lock_is_held(_lock_path(spec)))
 
 
-def clear_run_folder(spec: RunSpec) -> None:
-    """Move this sweep's old run folder out of the way and delete it (only called for folders
-    whose ``sweep.json`` names this run)."""
+def clear_run_folder(spec: RunSpec) -> list[str]:
+    """Delete what this sweep and its run wrote into the run folder (only called for folders
+    whose ``sweep.json`` names this run); returns the entries it kept because egs-bench did not
+    write them (then the folder is not emptied and cannot hold a new run)."""
+    from egs_bench.runs.folder import LOCK_FILE, RunFolder
+
     run_dir = Path(spec.run_dir)
-    if not run_dir.exists():
-        return
-    trash = Path(spec.sweep_dir) / STATE_DIR / "trash"
-    trash.mkdir(parents=True, exist_ok=True)
-    target = trash / f"{spec.key}.{time.time_ns()}"
-    os.replace(run_dir, target)
-    shutil.rmtree(target, ignore_errors=True)
+    if not run_dir.is_dir():
+        return []
+    for name in RUN_PRELUDE_FILES - {LOCK_FILE}:
+        if (run_dir / name).is_file():
+            (run_dir / name).unlink()
+    kept = RunFolder.remove_run_files(run_dir)
+    if not kept and not any(p.name != LOCK_FILE for p in run_dir.iterdir()):
+        (run_dir / LOCK_FILE).unlink(missing_ok=True)
+        run_dir.rmdir()
+    return kept
 
 
 def _redirect_output(path: Path) -> None:
@@ -251,8 +284,8 @@ def _run_method(spec: RunSpec, run_dir: Path, record: dict[str, Any]) -> None:
 
 
 def _evaluate(spec: RunSpec, run_dir: Path, record: dict[str, Any]) -> None:
-    """Evaluate a finished run with the sweep's protocol (an evaluation error is recorded; the
-    run stays done and the table says why)."""
+    """Evaluate a finished run with the sweep's protocol; an evaluation error fails the run
+    (state ``failed``, ``evaluation_error``), since a run without metrics is no result."""
     from egs_bench.eval.evaluate import evaluate_run
 
     t1 = time.perf_counter()
@@ -261,7 +294,8 @@ def _evaluate(spec: RunSpec, run_dir: Path, record: dict[str, Any]) -> None:
         record["evaluated"] = spec.protocol
     except Exception as exc:  # noqa: BLE001
         reraise_interruption(exc)
-        record["evaluation_error"] = f"{type(exc).__name__}: {exc}".splitlines()[0]
+        error = f"{type(exc).__name__}: {exc}".splitlines()[0]
+        record.update(state="failed", evaluation_error=error, reason=f"evaluation: {error}")
     finally:
         record["eval_wall_s"] = round(time.perf_counter() - t1, 3)
 
@@ -286,10 +320,23 @@ def _status_reason(run_dir: Path) -> str | None:
         return None
 
 
+def _refuse_foreign_files(spec: RunSpec, kept: list[str]) -> dict[str, Any]:
+    """Record (and return) a failed run whose folder holds files egs-bench did not write."""
+    shown = ", ".join(kept[:5]) + (f" and {len(kept) - 5} more" if len(kept) > 5 else "")
+    record = {"run_id": spec.run_id, "config_hash": spec.config_hash, "seed": spec.seed,
+              "settings_name": spec.settings_name, "identity": spec.identity,
+              "state": "failed", "finished_utc": now_utc(),
+              "reason": f"{spec.run_dir} holds files egs-bench did not write ({shown}); kept "
+                        "them and did not start the run: move them away and run again"}
+    write_record(spec.run_dir, record)
+    print(f"{spec.run_id}: {record['reason']}", file=sys.stderr)
+    return record
+
+
 def run_one(spec: RunSpec, force: bool = False, retry_failed: bool = False,
             redirect: bool = True) -> int:
     """Decide and (if needed) execute one run under its lock; returns a worker exit code."""
-    with run_lock(spec) as mine:
+    with run_lock(spec, grace_s=LOCK_GRACE_S) as mine:
         if not mine:
             print(f"{spec.run_id}: running in another process; not started", file=sys.stderr)
             return EXIT_BUSY
@@ -299,8 +346,9 @@ def run_one(spec: RunSpec, force: bool = False, retry_failed: bool = False,
             return EXIT_NOT_RUN
         if decision.action == EVALUATE:
             record = execute(spec, redirect=redirect, evaluate_only=True)
+        elif kept := clear_run_folder(spec):
+            record = _refuse_foreign_files(spec, kept)
         else:
-            clear_run_folder(spec)
             record = execute(spec, redirect=redirect)
     return {"done": EXIT_DONE, "interrupted": EXIT_INTERRUPTED}.get(record["state"], EXIT_FAILED)
 

@@ -311,7 +311,7 @@ class RunFolder:
             # checked again under the lock: another process may have finished a run here
             # between the first check and the lock
             prepare_output(path, "run", overwrite=overwrite, inputs=protected)
-            stale = cls._remove_run_files(path) if (path / RUN_FILE).exists() else []
+            stale = cls.remove_run_files(path) if (path / RUN_FILE).exists() else []
             info: dict[str, Any] = {
                 "method": str(method),
                 "sequence": {
@@ -356,7 +356,7 @@ class RunFolder:
                                     "wait for it to finish or choose another --out")
 
     @staticmethod
-    def _remove_run_files(path: Path) -> list[str]:
+    def remove_run_files(path: Path) -> list[str]:
         """Delete what a run wrote into ``path``; returns the names of other entries kept."""
         try:
             artifacts = _read_yaml(path / RUN_FILE).get("artifacts") or []

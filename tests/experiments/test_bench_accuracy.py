@@ -2,6 +2,7 @@
 ``--out``, ``--status`` before anything ran (pending rows, nothing started), the run and its
 egs/monogs ratio, and a second invocation that resumes instead of rerunning."""
 
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -89,3 +90,58 @@ def test_seed_summary_counts_only_finished_runs(capsys) -> None:
                         "(seeds finished: egs 2/3, monogs 1/3)")
     assert lines[1] == ("mean over the blurred sequences (s): ATE ratio 0.600, "
                         "PSNR gain +3.00 dB (preset cpu)")
+
+
+def test_numbers_come_only_from_runs_of_this_configuration(tmp_path: Path, monkeypatch) -> None:
+    """Run folders made with another configuration (here another frame limit; the folder names
+    are the same) are reported stale, not tabulated under the new label; ``--status``
+    evaluates nothing."""
+    worker_env(monkeypatch)
+    make_sequence(tmp_path / "data", "sa", 8, 0)
+    assert _bench(cwd=tmp_path).returncode == 0
+
+    changed = _bench("--max-frames", "5", cwd=tmp_path)
+    assert changed.returncode == 0, changed.stderr
+    runs = pd.read_csv(tmp_path / "out/runs.csv")
+    assert runs["error"].str.startswith("stale: finished with another configuration").all()
+    assert "ate_cm" not in runs or runs["ate_cm"].isna().all()
+    assert "ATE(egs)/ATE(monogs)" not in changed.stdout
+
+    metrics = tmp_path / "out/runs/sa/egs/seed0/metrics.json"
+    metrics.unlink()
+    status = _bench("--status", cwd=tmp_path)
+    assert status.returncode == 0, status.stderr
+    assert not metrics.exists()
+    runs = pd.read_csv(tmp_path / "out/runs.csv").set_index("method")
+    assert runs.loc["egs", "error"].startswith("not_evaluated")
+    assert runs.loc["monogs", "ate_cm"] > 0
+
+
+def test_bad_arguments_get_one_line(tmp_path: Path, monkeypatch) -> None:
+    worker_env(monkeypatch)
+    make_sequence(tmp_path / "data", "sa", 8, 0)
+
+    def bench(*args: str) -> subprocess.CompletedProcess:
+        return subprocess.run([sys.executable, str(SCRIPT), "--methods", METHODS, "--out", "out",
+                               *args], cwd=tmp_path, capture_output=True, text=True, timeout=300,
+                              env={**os.environ, "EGS_BENCH_DATA": str(tmp_path / "data")})
+
+    for args, code, message in [
+            (("--seq", "nosuch"), 1, "nosuch: no such sequence folder"),
+            (("--seq", "sa", "--seed", "1", "--seed", "1"), 2, "--seed names 1 more than once"),
+            (("--seq", "sa", "--device", "gpu"), 2, "invalid choice: 'gpu'"),
+            (("--seq", "sa", "--set", "lambda_d=0.1"), 2, "--set applies to built-in methods"),
+            (("--seq", "sa", "--methods", "nosuch"), 1, "nosuch")]:
+        result = bench(*args)
+        assert result.returncode == code, (args, result.stderr)
+        last = result.stderr.strip().splitlines()[-1]  # after argparse's usage, if any
+        assert last.startswith("bench_slam_accuracy.py: error: ") and message in last, last
+        assert "Traceback" not in result.stderr, result.stderr
+
+    # a built-in sequence not generated yet: --status lists its runs, generates nothing
+    status = bench("--seq", "demo", "--seq", "sa", "--status")
+    assert status.returncode == 0, status.stderr
+    runs = pd.read_csv(tmp_path / "out/runs.csv")
+    assert runs.set_index("sequence").loc["demo", "error"].tolist() == [
+        "pending: sequence not generated yet"] * 2
+    assert sorted(p.name for p in (tmp_path / "data").iterdir()) == ["sa"]

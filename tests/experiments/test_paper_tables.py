@@ -121,3 +121,18 @@ def test_paper_tables_cli_compiles_with_pdflatex(tmp_path, capsys) -> None:
     assert main(["paper-tables", str(sweep)]) == 2
     assert "already exists" in capsys.readouterr().err
     assert main(["paper-tables", str(sweep), "--overwrite", "--width", "natural"]) == 0
+
+
+def test_an_unknown_protocol_is_refused_not_tabulated_empty(tmp_path, capsys) -> None:
+    """An unknown --protocol used to give empty tables and exit 0 (every run "not evaluated");
+    it is one line naming the known protocols, and nothing is written."""
+    sweep = tmp_path / "sweep"
+    _runs(sweep / "runs", seqs=("room0",))
+    for command in (["paper-tables", str(sweep), "--protocol", "tum"],
+                    ["leaderboard", str(sweep / "runs"), "--protocol", "tum"],
+                    ["regress", str(sweep / "runs"), str(sweep / "runs"), "--protocol", "tum"]):
+        assert main(command) == 2, command
+        err = capsys.readouterr().err
+        assert "unknown protocol 'tum'; choose one of egs, monogs" in err
+        assert "Traceback" not in err
+    assert not (sweep / "tables").exists()

@@ -33,6 +33,7 @@ def seqs(tmp_path_factory):
     ({"methods": ["egs"], "sequences": ["a"], "slurm": {"timeout_min": -1}},
      "'slurm.timeout_min' must be a positive number"),
     ({"methods": ["egs"], "sequences": ["a"], "protocol": "tum"}, "unknown protocol 'tum'"),
+    ({"methods": ["egs"], "sequences": ["a"], "protocol": ["egs"]}, "unknown protocol ['egs']"),
     (["egs"], "must be a YAML mapping"),
 ])
 def test_sweep_file_errors_name_the_file(tmp_path, data, message) -> None:
@@ -162,10 +163,26 @@ def test_decide_from_the_run_folder(tmp_path, seqs) -> None:
         return decide(run).action
 
     ours = {"run_id": run.run_id, "config_hash": run.config_hash}
+    finished = {**ours, "state": "done", "evaluated": "egs"}
     assert decide(run).action == RUN  # no folder yet
     assert state(None, {"state": "done"}) == CONFLICT  # a folder the sweep did not make
-    assert state({**ours, "state": "done"}, {"state": "done"}) == SKIP
-    assert state({**ours, "state": "done", "config_hash": "x"}, {"state": "done"}) == STALE
+    assert state(finished, {"state": "done"}) == SKIP
+    assert state({**finished, "config_hash": "x"}, {"state": "done"}) == STALE
+    # evaluated under another protocol than the sweep's: only evaluated again
+    assert state({**finished, "evaluated": "monogs"}, {"state": "done"}) == EVALUATE
+    assert "'monogs'" in decide(run).why and "'egs'" in decide(run).why
+    # the method finished, its evaluation failed (or hit the time limit): kept like a failed
+    # run; --retry-failed evaluates again without rerunning the method, --force reruns it
+    for record in ({**ours, "state": "failed", "evaluation_error": "ValueError: x"},
+                   {**ours, "state": "timeout", "reason": "time limit of 1 min reached"},
+                   {**ours, "state": "done"}):  # older records: done without "evaluated"
+        assert state(record, {"state": "done"}) == KEEP_FAILED
+        assert "--retry-failed" in decide(run).why
+        assert decide(run, retry_failed=True).action == EVALUATE
+        assert decide(run, force=True).action == RUN
+    # the method itself hit the time limit: rerun only when asked
+    assert state({**ours, "state": "timeout"}, {"state": "interrupted"}) == KEEP_FAILED
+    assert decide(run, retry_failed=True).action == RUN
     # killed after the method finished, before its evaluation: the record still says running
     # (or interrupted, for SIGTERM); the outputs are kept and only evaluated, unless forced
     assert state({**ours, "state": "running"}, {"state": "done"}) == EVALUATE
@@ -175,7 +192,7 @@ def test_decide_from_the_run_folder(tmp_path, seqs) -> None:
     assert state({**ours, "state": "interrupted"}, {"state": "failed"}) == RUN
     assert state({**ours, "state": "failed"}, {"state": "failed"}) == KEEP_FAILED
     assert decide(run, retry_failed=True).action == RUN
-    assert state({**ours, "state": "done"}, {"state": "done"}) == SKIP
+    assert state(finished, {"state": "done"}) == SKIP
     assert decide(run, force=True).action == RUN
 
 
