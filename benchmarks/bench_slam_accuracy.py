@@ -215,6 +215,9 @@ def main() -> None:
         twice = sorted({str(v) for v in values if values.count(v) > 1})
         if twice:
             ap.error(f"{flag} names {', '.join(twice)} more than once")
+    outside = [s for s in args.ablation_seq or [] if s not in args.seq]
+    if outside:
+        ap.error(f"--ablation-seq {', '.join(outside)} is not among the --seq sequences")
     args.out = args.out.resolve()  # the sweep reports absolute run folders
     try:
         args.options = parse_overrides(args.overrides)

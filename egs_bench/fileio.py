@@ -22,6 +22,7 @@ from __future__ import annotations
 import contextlib
 import fcntl
 import os
+import re
 import shutil
 import socket
 import tempfile
@@ -122,6 +123,15 @@ def atomic_path(final: str | Path) -> Iterator[Path]:
     finally:
         if tmp.exists() or tmp.is_symlink():
             _remove(tmp)
+
+
+_ATOMIC_TEMP_NAME = re.compile(r"\..+\.[0-9a-f]{12}\.part(\.[^.]+)?")
+
+
+def is_atomic_temp(name: str) -> bool:
+    """Whether ``name`` is the temporary name :func:`atomic_path` gives a file while writing it
+    (left behind only when its process was killed between writing and renaming)."""
+    return _ATOMIC_TEMP_NAME.fullmatch(name) is not None
 
 
 def write_text_atomic(path: str | Path, text: str) -> None:

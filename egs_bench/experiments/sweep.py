@@ -27,9 +27,11 @@ from egs_bench.experiments.backends import Outcome, plan_slots, run_local, run_s
 from egs_bench.experiments.spec import RunSpec, SweepSpec, expand, in_shard
 from egs_bench.experiments.worker import (
     EVALUATE,
+    KEEP_FAILED,
     STARTS_WORK,
     decide,
     lock_is_held,
+    metrics_protocol,
     read_record,
     run_state,
 )
@@ -108,12 +110,10 @@ def _metrics(run_dir: Path, protocol: str) -> tuple[float, float]:
     """ATE [cm] and PSNR [dB] of a run's ``metrics.json`` under ``protocol`` (NaN where absent,
     unreadable or made under another protocol)."""
     path = run_dir / "metrics.json"
+    if metrics_protocol(run_dir) != protocol:
+        return math.nan, math.nan
     try:
-        data = json.loads(path.read_text())
-        proto = data.get("protocol") if isinstance(data, dict) else None
-        if not isinstance(proto, dict) or proto.get("name") != protocol:
-            return math.nan, math.nan
-        values = metric_values(data, path)
+        values = metric_values(json.loads(path.read_text()), path)
     except (OSError, ValueError, UnicodeDecodeError, EgsBenchError):
         return math.nan, math.nan
     return 100.0 * values.get("ate", math.nan), values.get("psnr", math.nan)
@@ -165,6 +165,9 @@ def run_row(spec: RunSpec, outcome: Outcome | None = None, invoked: bool = True
             reason = f"evaluation: {record['evaluation_error']}"
         if decision.action == EVALUATE:
             reason = decision.why
+        elif state == "done" and decision.action == KEEP_FAILED:  # a record from before
+            state = "failed"  # evaluation failures failed the run: done, never evaluated
+            reason = reason or decision.why
         wall = float(record.get("run_wall_s", math.nan)) + float(record.get("eval_wall_s", 0.0))
     ate, psnr = _metrics(run_dir, spec.protocol) if state == "done" else (math.nan, math.nan)
     action = outcome.action if outcome is not None else (

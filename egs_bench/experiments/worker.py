@@ -100,6 +100,17 @@ def run_state(run_dir: str | Path) -> str | None:
     return data.get("state") if isinstance(data.get("state"), str) else None
 
 
+def metrics_protocol(run_dir: str | Path) -> str | None:
+    """The protocol name in the run's ``metrics.json`` (``None`` when absent or unreadable)."""
+    try:
+        data = json.loads((Path(run_dir) / "metrics.json").read_text())
+    except (OSError, json.JSONDecodeError, UnicodeDecodeError):
+        return None
+    proto = data.get("protocol") if isinstance(data, dict) else None
+    name = proto.get("name") if isinstance(proto, dict) else None
+    return name if isinstance(name, str) else None
+
+
 @dataclass(frozen=True)
 class Decision:
     """What to do with a run, and why (one line for the summary)."""
@@ -127,6 +138,12 @@ def decide(spec: RunSpec, force: bool = False, retry_failed: bool = False) -> De
                                "rerun with --force or use another --out")
     state = run_state(run_dir)
     recorded = record.get("state")
+    if recorded == "timeout" and not force:  # stopped at the time limit: again only if asked
+        if not retry_failed:
+            return Decision(KEEP_FAILED, "stopped at its time limit (rerun with --retry-failed)")
+        if state == "done":
+            return Decision(EVALUATE, "retrying the evaluation that hit the time limit")
+        return Decision(RUN, "retrying a run that hit its time limit")
     # a record still "running" means the worker died (the caller holds or tested the lock);
     # the method marks its folder done only after writing every output, so a done folder under
     # an unfinished record lost only its evaluation (hours of SLAM are not redone for that)
@@ -136,13 +153,15 @@ def decide(spec: RunSpec, force: bool = False, retry_failed: bool = False) -> De
         return Decision(RUN, "interrupted before it finished")
     if force:
         return Decision(RUN, "--force")
-    if state == "done" and recorded == "done":
-        evaluated = record.get("evaluated")
-        if evaluated == spec.protocol:
+    if state == "done" and recorded == "done" and record.get("evaluated") is not None:
+        # metrics.json holds one protocol (``egs-bench eval --protocol`` may have replaced the
+        # sweep's since): only evaluated again when it is missing or another protocol's
+        found = metrics_protocol(run_dir)
+        if found == spec.protocol:
             return Decision(SKIP, "finished earlier")
-        if evaluated is not None:  # metrics.json holds one protocol: the sweep's replaces it
-            return Decision(EVALUATE, f"evaluated under protocol {evaluated!r}; the sweep "
-                                      f"asks for {spec.protocol!r}")
+        return Decision(EVALUATE, "metrics.json is missing" if found is None else
+                        f"evaluated under protocol {found!r}; the sweep asks for "
+                        f"{spec.protocol!r}")
     if state == "done":  # the method finished, its evaluation failed or timed out
         if retry_failed:
             return Decision(EVALUATE, "retrying the failed evaluation of a finished run")
@@ -192,16 +211,17 @@ def clear_run_folder(spec: RunSpec) -> list[str]:
     from egs_bench.runs.folder import LOCK_FILE, RunFolder
 
     run_dir = Path(spec.run_dir)
+    if run_dir.is_symlink():  # the folder is elsewhere; what else it holds is not known here
+        return [f"{run_dir.name} (a symbolic link to {os.readlink(run_dir)})"]
     if not run_dir.is_dir():
         return []
     for name in RUN_PRELUDE_FILES - {LOCK_FILE}:
-        if (run_dir / name).is_file():
-            (run_dir / name).unlink()
-    kept = RunFolder.remove_run_files(run_dir)
-    if not kept and not any(p.name != LOCK_FILE for p in run_dir.iterdir()):
-        (run_dir / LOCK_FILE).unlink(missing_ok=True)
-        run_dir.rmdir()
-    return kept
+        entry = run_dir / name
+        if entry.is_file() and not entry.is_symlink():
+            entry.unlink()
+    # the folder and its .lock stay (a lock file is never deleted: another process may hold
+    # it open); a folder holding only the prelude files counts as free for the new run
+    return RunFolder.remove_run_files(run_dir)
 
 
 def _redirect_output(path: Path) -> None:

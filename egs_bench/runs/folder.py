@@ -61,6 +61,7 @@ from egs_bench import __version__
 from egs_bench.errors import InputError, OutputError, interruption_in, interruption_reason
 from egs_bench.fileio import (
     FileLock,
+    is_atomic_temp,
     lock_is_held,
     owner_note,
     read_text,
@@ -357,31 +358,40 @@ class RunFolder:
 
     @staticmethod
     def remove_run_files(path: Path) -> list[str]:
-        """Delete what a run wrote into ``path``; returns the names of other entries kept."""
+        """Delete what a run wrote into ``path`` (its standard files, recorded artifacts,
+        ``renders/NNNNNN.png``, the plots, and the temporary files of atomic writes a killed
+        process left); returns the names of other entries, which are kept. Symbolic links are
+        never followed: a linked ``renders/`` is kept whole."""
         try:
             artifacts = _read_yaml(path / RUN_FILE).get("artifacts") or []
         except InputError:
             artifacts = []
         names = set(_STANDARD_FILES) | {str(a) for a in artifacts if isinstance(a, str)}
-        for name in names:
-            target = path / name
-            if "/" not in name and target.is_file() and not target.is_symlink():
-                target.unlink()
+
+        def ours_to_delete(entry: Path, ours: bool) -> bool:
+            return (ours or is_atomic_temp(entry.name)) and entry.is_file() \
+                and not entry.is_symlink()
+
+        for entry in list(path.iterdir()):
+            if "/" not in entry.name and ours_to_delete(entry, entry.name in names):
+                entry.unlink()
         for sub, allowed in ((RENDERS_DIR, None), (PLOTS_DIR, set(PLOT_FILES))):
             folder = path / sub
-            if not folder.is_dir():
+            if not folder.is_dir() or folder.is_symlink():
                 continue
-            for f in folder.iterdir():
+            for f in list(folder.iterdir()):
                 ours = _RENDER_NAME.match(f.name) if allowed is None else f.name in allowed
-                if ours and f.is_file():
+                if ours_to_delete(f, bool(ours)):
                     f.unlink()
             if not any(folder.iterdir()):
                 folder.rmdir()
         kept = []
         for entry in sorted(path.iterdir()):
-            if entry.name in (LOCK_FILE, RENDERS_DIR, PLOTS_DIR):
-                if entry.name != LOCK_FILE:
-                    kept += [f"{entry.name}/{f.name}" for f in sorted(entry.iterdir())]
+            if entry.name == LOCK_FILE:
+                continue
+            if entry.name in (RENDERS_DIR, PLOTS_DIR) and entry.is_dir() \
+                    and not entry.is_symlink():
+                kept += [f"{entry.name}/{f.name}" for f in sorted(entry.iterdir())]
                 continue
             kept.append(entry.name)
         return kept

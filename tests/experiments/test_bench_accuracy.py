@@ -131,7 +131,9 @@ def test_bad_arguments_get_one_line(tmp_path: Path, monkeypatch) -> None:
             (("--seq", "sa", "--seed", "1", "--seed", "1"), 2, "--seed names 1 more than once"),
             (("--seq", "sa", "--device", "gpu"), 2, "invalid choice: 'gpu'"),
             (("--seq", "sa", "--set", "lambda_d=0.1"), 2, "--set applies to built-in methods"),
-            (("--seq", "sa", "--methods", "nosuch"), 1, "nosuch")]:
+            (("--seq", "sa", "--methods", "nosuch"), 1, "nosuch"),
+            (("--seq", "sa", "--ablation-seq", "sb"), 2,
+             "--ablation-seq sb is not among the --seq sequences")]:
         result = bench(*args)
         assert result.returncode == code, (args, result.stderr)
         last = result.stderr.strip().splitlines()[-1]  # after argparse's usage, if any

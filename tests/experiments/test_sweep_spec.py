@@ -154,9 +154,12 @@ def test_decide_from_the_run_folder(tmp_path, seqs) -> None:
     run = expand(spec, seqs, tmp_path)[0]
     run_dir = tmp_path / "runs" / run.run_id
 
-    def state(record: dict | None, status: dict | None) -> str:
+    def state(record: dict | None, status: dict | None, evaluated_under: str | None = "egs"
+              ) -> str:
         run_dir.mkdir(parents=True, exist_ok=True)
-        for name, data in (("sweep.json", record), ("status.json", status)):
+        metrics = None if evaluated_under is None else {"protocol": {"name": evaluated_under}}
+        for name, data in (("sweep.json", record), ("status.json", status),
+                           ("metrics.json", metrics)):
             (run_dir / name).unlink(missing_ok=True)
             if data is not None:
                 (run_dir / name).write_text(json.dumps(data))
@@ -168,9 +171,10 @@ def test_decide_from_the_run_folder(tmp_path, seqs) -> None:
     assert state(None, {"state": "done"}) == CONFLICT  # a folder the sweep did not make
     assert state(finished, {"state": "done"}) == SKIP
     assert state({**finished, "config_hash": "x"}, {"state": "done"}) == STALE
-    # evaluated under another protocol than the sweep's: only evaluated again
-    assert state({**finished, "evaluated": "monogs"}, {"state": "done"}) == EVALUATE
+    # metrics.json under another protocol than the sweep's (or none): only evaluated again
+    assert state(finished, {"state": "done"}, evaluated_under="monogs") == EVALUATE
     assert "'monogs'" in decide(run).why and "'egs'" in decide(run).why
+    assert state(finished, {"state": "done"}, evaluated_under=None) == EVALUATE
     # the method finished, its evaluation failed (or hit the time limit): kept like a failed
     # run; --retry-failed evaluates again without rerunning the method, --force reruns it
     for record in ({**ours, "state": "failed", "evaluation_error": "ValueError: x"},

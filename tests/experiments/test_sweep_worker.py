@@ -191,3 +191,96 @@ def test_dry_run_and_status_generate_no_builtin_sequence(tmp_path, seqs, monkeyp
                        "s.yaml")
     with pytest.raises(InputError, match="demo-fats"):
         run_sweep(typo, out=tmp_path / "out2", dry_run=True, say=lambda m: None)
+
+
+def test_temporary_files_of_a_killed_writer_do_not_block_the_rerun(tmp_path, seqs) -> None:
+    """SIGKILL between writing a file and renaming it leaves ``.<name>.<hex>.part<suffix>``
+    (``fileio.atomic_path``): egs-bench's own, deleted with the run, not a user's file."""
+    run = _run(seqs, tmp_path)
+    assert worker.run_one(run, redirect=False) == worker.EXIT_DONE
+    run_dir = Path(run.run_dir)
+    _kill_after_start(run)
+    for name in (".status.json.0123456789ab.part.json", "renders/.000003.png.a1b2c3d4e5f6.part.png",
+                 ".map.0123456789ab.part"):
+        (run_dir / name).write_bytes(b"half written")
+    (run_dir / ".notes.txt.swp").write_text("an editor's file, not ours")
+    assert worker.run_one(run, redirect=False) == worker.EXIT_FAILED
+    assert _record(run)["reason"].count(".part") == 0
+    assert ".notes.txt.swp" in _record(run)["reason"]
+    (run_dir / ".notes.txt.swp").unlink()
+    assert worker.run_one(run, redirect=False) == worker.EXIT_DONE
+    assert not [p for p in run_dir.rglob("*.part*")]
+
+
+def test_symbolic_links_are_never_followed_when_a_run_is_replaced(tmp_path, seqs) -> None:
+    run = _run(seqs, tmp_path)
+    assert worker.run_one(run, redirect=False) == worker.EXIT_DONE
+    run_dir = Path(run.run_dir)
+    elsewhere = tmp_path / "my_renders"
+    elsewhere.mkdir()
+    (elsewhere / "000001.png").write_bytes(b"a user's image named like a render")
+    _kill_after_start(run)
+    for f in (run_dir / "renders").iterdir():
+        f.unlink()
+    (run_dir / "renders").rmdir()
+    (run_dir / "renders").symlink_to(elsewhere)
+    assert worker.run_one(run, redirect=False) == worker.EXIT_FAILED
+    assert (elsewhere / "000001.png").read_bytes() == b"a user's image named like a render"
+    assert "renders" in _record(run)["reason"]
+
+    linked = _run(seqs, tmp_path / "linked")  # the whole run folder is a link
+    target = tmp_path / "real_run"
+    assert worker.run_one(_run(seqs, target), redirect=False) == worker.EXIT_DONE
+    Path(linked.run_dir).parent.mkdir(parents=True)
+    Path(linked.run_dir).symlink_to(Path(target) / "runs" / linked.run_id)
+    _kill_after_start(linked)  # its record and status, read through the link
+    before = sorted(p.name for p in (Path(target) / "runs" / linked.run_id).iterdir())
+    assert worker.run_one(linked, redirect=False) == worker.EXIT_FAILED
+    assert sorted(p.name for p in (Path(target) / "runs" / linked.run_id).iterdir()) == before
+    assert "symbolic link" in _record(linked)["reason"]
+
+
+def test_metrics_replaced_or_removed_after_the_sweep_are_evaluated_again(tmp_path, seqs
+                                                                         ) -> None:
+    """``egs-bench eval --protocol monogs`` on a sweep's run (or a deleted metrics.json) leaves
+    the sweep without numbers for its protocol: evaluated again, not skipped as finished."""
+    from egs_bench.eval.evaluate import evaluate_run
+
+    run = _run(seqs, tmp_path)
+    assert worker.run_one(run, redirect=False) == worker.EXIT_DONE
+    evaluate_run(run.run_dir, "monogs", write=True)
+    assert worker.decide(run).action == worker.EVALUATE
+    assert "evaluated under protocol 'monogs'" in run_row(run)["reason"]
+    (Path(run.run_dir) / "metrics.json").unlink()
+    assert worker.decide(run).action == worker.EVALUATE
+    assert run_row(run)["reason"] == "metrics.json is missing"
+    assert worker.run_one(run, redirect=False) == worker.EXIT_DONE
+    assert worker.decide(run).action == worker.SKIP and run_row(run)["ate_cm"] > 0
+
+
+def test_an_evaluation_failed_under_older_code_shows_failed(tmp_path, seqs) -> None:
+    """Records written before evaluation failures failed the run: state done, an
+    ``evaluation_error``, no ``evaluated``. The row and the exit status must agree with
+    ``decide`` (kept as failed), not show done."""
+    run = _run(seqs, tmp_path)
+    assert worker.run_one(run, redirect=False) == worker.EXIT_DONE
+    (Path(run.run_dir) / "metrics.json").unlink()
+    record = _record(run)
+    del record["evaluated"]
+    record["evaluation_error"] = "ValueError: degenerate"
+    worker.write_record(run.run_dir, record)
+    row = run_row(run)
+    assert worker.decide(run).action == worker.KEEP_FAILED
+    assert row["state"] == "failed" and row["reason"] == "evaluation: ValueError: degenerate"
+
+
+def test_a_run_killed_at_its_time_limit_is_not_rerun_unasked(tmp_path, seqs) -> None:
+    """SIGKILL at the time limit leaves status.json running under a timeout record: kept like
+    a failed run (rerunning would hit the limit again), rerun with --retry-failed."""
+    run = _run(seqs, tmp_path)
+    assert worker.run_one(run, redirect=False) == worker.EXIT_DONE
+    _kill_after_start(run)
+    worker.write_record(run.run_dir, {**_record(run), "state": "timeout"})
+    assert worker.decide(run).action == worker.KEEP_FAILED
+    assert worker.decide(run, retry_failed=True).action == worker.RUN
+    assert run_row(run)["state"] == "timeout"

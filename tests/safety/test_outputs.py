@@ -246,3 +246,17 @@ def test_overwrite_never_replaces_a_file_inside_an_input_folder(seq_copy, capsys
     assert frame.read_bytes() == before
     new = seq_copy / "panel.png"  # a new file next to the inputs replaces nothing: allowed
     assert _cli(capsys, "show", seq_copy, "--frame", "1", "--out", new)[0] == 0
+
+
+@pytest.mark.parametrize("name", ["status.json", "000012.png", "map", "trajectory.txt"])
+def test_atomic_temp_names_are_recognised(tmp_path: Path, name: str) -> None:
+    """The names ``atomic_path`` writes under are what ``is_atomic_temp`` recognises (a killed
+    writer's leftover is deleted with the run that wrote it), and a user's dot-file is not."""
+    from egs_bench.fileio import is_atomic_temp
+
+    with atomic_path(tmp_path / name) as tmp:
+        assert is_atomic_temp(tmp.name), tmp.name
+        tmp.write_text("x")
+    assert not is_atomic_temp(name)
+    for other in (".notes.txt.swp", ".status.json.part.json", ".x.0123456789ab.partial"):
+        assert not is_atomic_temp(other), other
