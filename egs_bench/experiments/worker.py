@@ -147,6 +147,8 @@ def decide(spec: RunSpec, force: bool = False, retry_failed: bool = False) -> De
     # a record still "running" means the worker died (the caller holds or tested the lock);
     # the method marks its folder done only after writing every output, so a done folder under
     # an unfinished record lost only its evaluation (hours of SLAM are not redone for that)
+    if record.get("refused_foreign_files") and state is None:
+        return Decision(RUN, "its folder held files egs-bench did not write; trying again")
     if recorded in ("interrupted", "running") or state in (None, "running"):
         if state == "done" and not force:
             return Decision(EVALUATE, "the method finished; its evaluation was interrupted")
@@ -345,7 +347,7 @@ def _refuse_foreign_files(spec: RunSpec, kept: list[str]) -> dict[str, Any]:
     shown = ", ".join(kept[:5]) + (f" and {len(kept) - 5} more" if len(kept) > 5 else "")
     record = {"run_id": spec.run_id, "config_hash": spec.config_hash, "seed": spec.seed,
               "settings_name": spec.settings_name, "identity": spec.identity,
-              "state": "failed", "finished_utc": now_utc(),
+              "state": "failed", "finished_utc": now_utc(), "refused_foreign_files": kept,
               "reason": f"{spec.run_dir} holds files egs-bench did not write ({shown}); kept "
                         "them and did not start the run: move them away and run again"}
     write_record(spec.run_dir, record)

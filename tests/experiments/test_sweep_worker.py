@@ -135,7 +135,8 @@ def test_rerunning_a_killed_run_keeps_files_egs_bench_did_not_write(tmp_path, se
 
     (run_dir / "notes.txt").unlink()
     (run_dir / "renders" / "my_crop.png").unlink()
-    assert worker.decide(run).action == worker.RUN  # the failed start is tried again
+    decision = worker.decide(run)  # the failed start is tried again, and --dry-run says why
+    assert decision.action == worker.RUN and "files egs-bench did not write" in decision.why
     assert worker.run_one(run, redirect=False) == worker.EXIT_DONE
     assert run_row(run)["state"] == "done" and run_row(run)["ate_cm"] > 0
 
