@@ -91,7 +91,7 @@ def run_grid(args: argparse.Namespace) -> pd.DataFrame:
                            status_only=args.status, say=print)
         summaries.append(report.summary)
         states = report.summary.set_index("run")
-        rows += [run_row(r, str(states.loc[r.run_id, "state"]),
+        rows += [table_row(r, str(states.loc[r.run_id, "state"]),
                          str(states.loc[r.run_id, "reason"] or ""), args.out)
                  for r in report.runs]
         rows += [{"sequence": seq, "method": m, "seed": seed,
@@ -102,7 +102,7 @@ def run_grid(args: argparse.Namespace) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def run_row(spec: RunSpec, state: str, reason: str, out: Path) -> dict[str, object]:
+def table_row(spec: RunSpec, state: str, reason: str, out: Path) -> dict[str, object]:
     """One table row: the run's metrics when the sweep reports it ``done`` for this
     configuration, else its state and reason in ``error`` (a stale or conflicting folder holds
     another configuration's numbers and is not read). Nothing is evaluated here: the sweep's

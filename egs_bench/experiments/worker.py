@@ -144,11 +144,11 @@ def decide(spec: RunSpec, force: bool = False, retry_failed: bool = False) -> De
         if state == "done":
             return Decision(EVALUATE, "retrying the evaluation that hit the time limit")
         return Decision(RUN, "retrying a run that hit its time limit")
+    if record.get("refused_foreign_files") and state is None:
+        return Decision(RUN, "its folder held files egs-bench did not write; trying again")
     # a record still "running" means the worker died (the caller holds or tested the lock);
     # the method marks its folder done only after writing every output, so a done folder under
     # an unfinished record lost only its evaluation (hours of SLAM are not redone for that)
-    if record.get("refused_foreign_files") and state is None:
-        return Decision(RUN, "its folder held files egs-bench did not write; trying again")
     if recorded in ("interrupted", "running") or state in (None, "running"):
         if state == "done" and not force:
             return Decision(EVALUATE, "the method finished; its evaluation was interrupted")
@@ -236,6 +236,12 @@ def _redirect_output(path: Path) -> None:
     os.close(fd)
 
 
+def _identity_fields(spec: RunSpec) -> dict[str, Any]:
+    """The record fields that say which run and configuration a folder holds."""
+    return {"run_id": spec.run_id, "config_hash": spec.config_hash, "seed": spec.seed,
+            "settings_name": spec.settings_name, "identity": spec.identity}
+
+
 def execute(spec: RunSpec, redirect: bool = True, evaluate_only: bool = False
             ) -> dict[str, Any]:
     """Run the method of ``spec`` into its (prepared) run folder, evaluate it, and return the
@@ -249,8 +255,7 @@ def execute(spec: RunSpec, redirect: bool = True, evaluate_only: bool = False
     run_dir.mkdir(parents=True, exist_ok=True)
     earlier = read_record(run_dir) if evaluate_only else None
     record: dict[str, Any] = {
-        "run_id": spec.run_id, "config_hash": spec.config_hash, "seed": spec.seed,
-        "settings_name": spec.settings_name, "identity": spec.identity, "state": "running",
+        **_identity_fields(spec), "state": "running",
         "host": socket.gethostname(), "pid": os.getpid(),
         "started_utc": (earlier or {}).get("started_utc") or now_utc(),
         "threads": os.environ.get("EGS_BENCH_THREADS"),
@@ -345,8 +350,7 @@ def _status_reason(run_dir: Path) -> str | None:
 def _refuse_foreign_files(spec: RunSpec, kept: list[str]) -> dict[str, Any]:
     """Record (and return) a failed run whose folder holds files egs-bench did not write."""
     shown = ", ".join(kept[:5]) + (f" and {len(kept) - 5} more" if len(kept) > 5 else "")
-    record = {"run_id": spec.run_id, "config_hash": spec.config_hash, "seed": spec.seed,
-              "settings_name": spec.settings_name, "identity": spec.identity,
+    record = {**_identity_fields(spec),
               "state": "failed", "finished_utc": now_utc(), "refused_foreign_files": kept,
               "reason": f"{spec.run_dir} holds files egs-bench did not write ({shown}); kept "
                         "them and did not start the run: move them away and run again"}
