@@ -14,7 +14,10 @@ With several ``--seed`` the table holds the mean over the seeds that finished an
 deviation (``*_std`` columns); ``seeds`` says how many finished of how many were asked for and
 ``error`` names each unfinished seed with its state. ``code`` is the commit each run was made
 with (``egs_bench.provenance``; ``?`` for runs that predate its recording). The ratios use the
-means.
+means. With at least two finished seeds per method and sequence, the summary adds how far the
+seeds could move it: a 95 % bootstrap interval of the mean ATE ratio and PSNR gain, and of
+each ablation row's difference to ``egs`` (:func:`seed_intervals`). The summary lines are
+printed and written to ``<out>/accuracy_summary.txt``.
 
 The tables of docs/notes/slam.md and BENCHMARKS.md were made with
 
@@ -52,6 +55,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pandas as pd
 
 from egs_bench.errors import EgsBenchError
@@ -154,32 +158,99 @@ def summarise_seeds(runs: pd.DataFrame) -> pd.DataFrame:
     return out.reset_index()
 
 
-def print_ratios(df: pd.DataFrame, unblurred: list[str], setting: str) -> None:
+def ratio_lines(df: pd.DataFrame, unblurred: list[str], setting: str) -> list[str]:
     """Per-sequence ATE ratio and PSNR gain of egs over monogs, their mean over the blurred
     sequences, and the 10 % ATE rule on the unblurred ones. Each method's numbers are its mean
     over the seeds it finished; with several seeds each line says how many that was, since
     the two methods of a sequence may have finished different seeds so far."""
     if not {"egs", "monogs"} <= set(df["method"]) or "ate_cm" not in df:
-        return
+        return []
     piv = df.pivot(index="sequence", columns="method", values=["ate_cm", "psnr_db"])
     ratio = (piv["ate_cm"]["egs"] / piv["ate_cm"]["monogs"]).dropna()
     gain = (piv["psnr_db"]["egs"] - piv["psnr_db"]["monogs"]).reindex(ratio.index)
     if ratio.empty:
-        print("no sequence has finished runs of both egs and monogs yet")
-        return
+        return ["no sequence has finished runs of both egs and monogs yet"]
+    lines = []
     seeds = (df.set_index(["sequence", "method"])["seeds"] if "seeds" in df else None)
     for name in ratio.index:
         counts = ("" if seeds is None else
                   f" (seeds finished: egs {seeds[name, 'egs']}, monogs {seeds[name, 'monogs']})")
-        print(f"{name}: ATE(egs)/ATE(monogs) = {ratio[name]:.3f}, "
-              f"PSNR(egs) - PSNR(monogs) = {gain[name]:+.2f} dB{counts}")
+        lines.append(f"{name}: ATE(egs)/ATE(monogs) = {ratio[name]:.3f}, "
+                     f"PSNR(egs) - PSNR(monogs) = {gain[name]:+.2f} dB{counts}")
     blurred = [n for n in ratio.index if n not in set(unblurred)]
     if blurred:
-        print(f"mean over the blurred sequences ({', '.join(blurred)}): ATE ratio "
-              f"{ratio[blurred].mean():.3f}, PSNR gain {gain[blurred].mean():+.2f} dB ({setting})")
+        lines.append(f"mean over the blurred sequences ({', '.join(blurred)}): ATE ratio "
+                     f"{ratio[blurred].mean():.3f}, PSNR gain {gain[blurred].mean():+.2f} dB "
+                     f"({setting})")
     for name in [n for n in ratio.index if n in set(unblurred)]:
         verdict = "met" if ratio[name] <= 1.1 else "NOT met"
-        print(f"unblurred {name}: ATE ratio {ratio[name]:.3f} (at most 1.10: {verdict})")
+        lines.append(f"unblurred {name}: ATE ratio {ratio[name]:.3f} (at most 1.10: {verdict})")
+    return lines
+
+
+def resample_seed_means(runs: pd.DataFrame, n_resamples: int,
+                        rng: np.random.Generator) -> dict[tuple[str, str], np.ndarray]:
+    """Bootstrap replicates of each (sequence, method)'s seed means: the finished seeds are
+    drawn with replacement, as many as there are, ``n_resamples`` times. Returns, per cell, an
+    array ``(n_resamples, 2)`` of (mean ATE cm, mean PSNR dB). Cells with fewer than two
+    finished seeds are left out (one seed says nothing about the spread).
+
+    A run's ATE and PSNR are drawn together (one index draw per replicate), which is why this
+    is not ``scipy.stats.bootstrap``: it resamples each sample's values on their own."""
+    done = runs.dropna(subset=["ate_cm", "psnr_db"])
+    out = {}
+    for (seq, method), cell in done.groupby(["sequence", "method"], sort=False):
+        values = cell[["ate_cm", "psnr_db"]].to_numpy(dtype=np.float64)  # (seeds, 2)
+        if len(values) < 2:
+            continue
+        draws = rng.integers(0, len(values), size=(n_resamples, len(values)))
+        out[str(seq), str(method)] = values[draws].mean(axis=1)
+    return out
+
+
+def seed_intervals(runs: pd.DataFrame, unblurred: list[str], ablation_seqs: list[str],
+                   confidence: float = 0.95, n_resamples: int = 20_000,
+                   seed: int = 0) -> list[str]:
+    """How far the seeds could move the summary: percentile-bootstrap intervals (seeds
+    resampled within each sequence and method, independently) of the mean ATE ratio and PSNR
+    gain of egs over monogs across the blurred sequences, and, on each ablation sequence, of
+    every other method's mean ATE and PSNR minus egs's. Needs two or more finished seeds per
+    cell; with three seeds a cell has only 10 distinct resamples and the bootstrap understates
+    the spread by about (n - 1) / n in variance, so the interval is a guide, not a test."""
+    if "ate_cm" not in runs or "psnr_db" not in runs:
+        return []
+    means = resample_seed_means(runs, n_resamples, np.random.default_rng(seed))
+    tails = [100 * (1 - confidence) / 2, 100 * (1 + confidence) / 2]
+    label = f"{100 * confidence:.0f} % seed-bootstrap interval"
+
+    def bounds(x: np.ndarray, fmt: str) -> str:
+        lo, hi = np.percentile(x, tails)
+        return f"[{lo:{fmt}}, {hi:{fmt}}]"
+
+    lines = []
+    sequences = list(dict.fromkeys(runs["sequence"]))
+    blurred = [s for s in sequences if s not in set(unblurred)
+               and (s, "egs") in means and (s, "monogs") in means]
+    if blurred and len(blurred) == len([s for s in sequences if s not in set(unblurred)]):
+        ratio = np.mean([means[s, "egs"][:, 0] / means[s, "monogs"][:, 0] for s in blurred],
+                        axis=0)
+        gain = np.mean([means[s, "egs"][:, 1] - means[s, "monogs"][:, 1] for s in blurred],
+                       axis=0)
+        lines.append(f"{label} of the mean over the blurred sequences: ATE ratio "
+                     f"{bounds(ratio, '.3f')}, PSNR gain {bounds(gain, '+.2f')} dB")
+    elif runs["seed"].nunique() > 1:
+        lines.append(f"no {label} of the mean yet: it needs two finished seeds of egs and "
+                     "monogs on every blurred sequence")
+    for seq in ablation_seqs:
+        if (seq, "egs") not in means:
+            continue
+        for (s, method), m in means.items():
+            if s != seq or method in ("egs", "monogs"):
+                continue
+            diff = m - means[seq, "egs"]
+            lines.append(f"{seq}: {method} - egs ({label}): ATE {bounds(diff[:, 0], '+.2f')} "
+                         f"cm, PSNR {bounds(diff[:, 1], '+.2f')} dB")
+    return lines
 
 
 def main() -> None:
@@ -232,8 +303,12 @@ def main() -> None:
     df = summarise_seeds(runs)
     write_text_atomic(args.out / "accuracy.csv", df.to_csv(index=False))
     print(df.to_markdown(index=False, floatfmt=".3f"))
-    print_ratios(df, args.unblurred, f"preset {args.preset}")
     write_text_atomic(args.out / "accuracy.md", df.to_markdown(index=False, floatfmt=".3f") + "\n")
+    summary = (ratio_lines(df, args.unblurred, f"preset {args.preset}")
+               + seed_intervals(runs, args.unblurred, args.ablation_seq or args.seq[:1]))
+    for line in summary:
+        print(line)
+    write_text_atomic(args.out / "accuracy_summary.txt", "".join(f"{x}\n" for x in summary))
 
 
 if __name__ == "__main__":

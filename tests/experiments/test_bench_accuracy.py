@@ -2,11 +2,14 @@
 ``--out``, ``--status`` before anything ran (pending rows, nothing started), the run and its
 egs/monogs ratio, and a second invocation that resumes instead of rerunning."""
 
+import importlib.util
 import os
 import subprocess
 import sys
 from pathlib import Path
+from types import ModuleType
 
+import numpy as np
 import pandas as pd
 from sweep_fixtures import make_sequence, worker_env
 
@@ -45,6 +48,10 @@ def test_status_run_and_resume(tmp_path: Path, monkeypatch) -> None:
     assert runs.loc["egs", "ate_cm"] < runs.loc["monogs", "ate_cm"]
     ratio = runs.loc["egs", "ate_cm"] / runs.loc["monogs", "ate_cm"]
     assert f"sa: ATE(egs)/ATE(monogs) = {ratio:.3f}" in first.stdout
+    # the summary lines are kept beside the table, not only printed
+    summary = (tmp_path / "out/accuracy_summary.txt").read_text().splitlines()
+    assert summary[0].startswith(f"sa: ATE(egs)/ATE(monogs) = {ratio:.3f}")
+    assert all(line in first.stdout for line in summary)
     assert (tmp_path / "out/accuracy.md").read_text().count("| sa ") == 2
 
     first_csv = (tmp_path / "out/runs.csv").read_text()
@@ -54,16 +61,19 @@ def test_status_run_and_resume(tmp_path: Path, monkeypatch) -> None:
     assert (tmp_path / "out/runs.csv").read_text() == first_csv
 
 
-def test_seed_summary_counts_only_finished_runs(capsys) -> None:
-    """With several seeds, a row's mean is over the finished seeds and says how many of how
-    many finished; every unfinished seed is named with its state; the egs/monogs line says
-    how many seeds each side's mean has."""
-    import importlib.util
-
+def _load_bench() -> ModuleType:
     spec = importlib.util.spec_from_file_location("bench_slam_accuracy", SCRIPT)
     assert spec is not None and spec.loader is not None
     bench = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(bench)
+    return bench
+
+
+def test_seed_summary_counts_only_finished_runs() -> None:
+    """With several seeds, a row's mean is over the finished seeds and says how many of how
+    many finished; every unfinished seed is named with its state; the egs/monogs line says
+    how many seeds each side's mean has."""
+    bench = _load_bench()
     runs = pd.DataFrame([
         {"sequence": "s", "method": "egs", "seed": 0, "ate_cm": 2.0, "psnr_db": 30.0,
          "code": "d9f4d77"},
@@ -84,12 +94,55 @@ def test_seed_summary_counts_only_finished_runs(capsys) -> None:
     assert table.loc["egs", "code"] == "d9f4d77, 9609709+" and table.loc["monogs", "code"] == "?"
     assert table.loc["monogs", "error"] == ("seed 1: pending: not started; "
                                             "seed 2: pending: not started")
-    bench.print_ratios(table.reset_index(), [], "preset cpu")
-    lines = capsys.readouterr().out.splitlines()
+    lines = bench.ratio_lines(table.reset_index(), [], "preset cpu")
     assert lines[0] == ("s: ATE(egs)/ATE(monogs) = 0.600, PSNR(egs) - PSNR(monogs) = +3.00 dB "
                         "(seeds finished: egs 2/3, monogs 1/3)")
     assert lines[1] == ("mean over the blurred sequences (s): ATE ratio 0.600, "
                         "PSNR gain +3.00 dB (preset cpu)")
+    # monogs has one finished seed: no interval of the mean can be drawn yet
+    assert bench.seed_intervals(runs, [], ["s"]) == [
+        "no 95 % seed-bootstrap interval of the mean yet: it needs two finished seeds of egs "
+        "and monogs on every blurred sequence"]
+
+
+def _seed_runs(cells: dict[tuple[str, str], list[tuple[float, float]]]) -> pd.DataFrame:
+    return pd.DataFrame([{"sequence": seq, "method": method, "seed": k, "ate_cm": ate,
+                          "psnr_db": psnr}
+                         for (seq, method), values in cells.items()
+                         for k, (ate, psnr) in enumerate(values)])
+
+
+def test_seed_bootstrap_draws_a_runs_metrics_together() -> None:
+    """One replicate mean takes ATE and PSNR from the same drawn runs: with ATE + PSNR = 32 on
+    every run, every replicate keeps that sum (independent draws would not)."""
+    bench = _load_bench()
+    runs = _seed_runs({("s", "egs"): [(2.0, 30.0), (4.0, 28.0), (3.5, 28.5)],
+                       ("s", "monogs"): [(5.0, 26.0)]})
+    means = bench.resample_seed_means(runs, 500, np.random.default_rng(1))
+    assert set(means) == {("s", "egs")}  # one seed has no spread to resample
+    egs = means["s", "egs"]
+    assert egs.shape == (500, 2)
+    np.testing.assert_allclose(egs.sum(axis=1), 32.0)
+    assert len(np.unique(egs[:, 0])) > 3  # it did resample
+
+
+def test_seed_intervals_match_the_two_seed_case() -> None:
+    """Two seeds per cell: a replicate's mean is seed a's, the midpoint or seed b's with
+    chances 1/4, 1/2, 1/4, so the 95 % percentile interval runs from one seed's value to the
+    other's. monogs's seeds are equal, so the ratio's bounds are egs's ATE over 5 cm; the
+    ablation row's difference bounds come from both rows' draws (2.5 - 4 and 3.5 - 2)."""
+    bench = _load_bench()
+    runs = _seed_runs({("s", "egs"): [(2.0, 30.0), (4.0, 28.0)],
+                       ("s", "monogs"): [(5.0, 26.0), (5.0, 26.0)],
+                       ("s", "egs-no-event-mapping"): [(2.5, 29.0), (3.5, 29.0)],
+                       ("s", "egs-no-events"): [(9.0, 20.0)],
+                       ("t", "egs"): [(1.0, 30.0), (1.0, 30.0)]})
+    lines = bench.seed_intervals(runs, ["t"], ["s"])
+    assert lines == [
+        "95 % seed-bootstrap interval of the mean over the blurred sequences: ATE ratio "
+        "[0.400, 0.800], PSNR gain [+2.00, +4.00] dB",
+        "s: egs-no-event-mapping - egs (95 % seed-bootstrap interval): ATE [-1.50, +1.50] cm, "
+        "PSNR [-1.00, +1.00] dB"]
 
 
 def test_numbers_come_only_from_runs_of_this_configuration(tmp_path: Path, monkeypatch) -> None:
