@@ -19,6 +19,11 @@ seeds could move it: a 95 % bootstrap interval of the mean ATE ratio and PSNR ga
 each ablation row's difference to ``egs`` (:func:`seed_intervals`). The summary lines are
 printed and written to ``<out>/accuracy_summary.txt``.
 
+``--from-runs RUNS_CSV`` (repeatable) starts nothing and tabulates the ``runs.csv`` of earlier
+invocations together, e.g. seeds run in separate checkouts or on several machines: one
+table and one summary over all their finished runs (a run listed twice must agree; printed
+only, nothing is written).
+
 The tables of docs/notes/slam.md and BENCHMARKS.md were made with
 
     EGS_BENCH_DATA=data python benchmarks/bench_slam_accuracy.py --seq demo --seq demo-fast \
@@ -253,9 +258,37 @@ def seed_intervals(runs: pd.DataFrame, unblurred: list[str], ablation_seqs: list
     return lines
 
 
+def combine_runs(paths: list[Path]) -> pd.DataFrame:
+    """The finished runs of several ``runs.csv`` files (this script's per-run output), one row
+    per (sequence, method, seed). Raises :class:`EgsBenchError` naming the file when one cannot
+    be read or lacks the columns, and when two files give one run different numbers."""
+    key = ["sequence", "method", "seed"]
+    frames = []
+    for path in paths:
+        try:
+            frame = pd.read_csv(path, dtype={"code": str})
+        except (OSError, ValueError) as exc:
+            raise EgsBenchError(f"{path}: cannot read it as a runs.csv ({exc})") from exc
+        missing = [c for c in (*key, "ate_cm", "psnr_db") if c not in frame]
+        if missing:
+            raise EgsBenchError(f"{path}: not a runs.csv of this benchmark "
+                                f"(no column {', '.join(missing)})")
+        frames.append(frame.dropna(subset=["ate_cm"]).assign(source=str(path)))
+    runs = pd.concat(frames, ignore_index=True)
+    values = [c for c in ("ate_cm", "psnr_db", "ssim") if c in runs]
+    for (seq, method, seed), rows in runs.groupby(key, sort=False):
+        if len(rows[values].round(6).drop_duplicates()) > 1:
+            raise EgsBenchError(f"{seq}/{method}/seed{seed}: {' and '.join(rows['source'])} "
+                                "give it different numbers")
+    runs = runs.drop_duplicates(subset=key).drop(columns="source")
+    return runs.drop(columns=[c for c in ("error",) if c in runs]).reset_index(drop=True)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--seq", action="append", required=True, help="sequence folder or name")
+    ap.add_argument("--seq", action="append", help="sequence folder or name")
+    ap.add_argument("--from-runs", action="append", type=Path, default=[], metavar="RUNS_CSV",
+                    help="start nothing: tabulate the runs.csv of earlier invocations together")
     ap.add_argument("--methods", default=",".join(DEFAULT_METHODS))
     ap.add_argument("--preset", default="cpu", choices=["cpu", "paper"])
     ap.add_argument("--device", default="cpu", choices=list(DEVICES))
@@ -280,6 +313,20 @@ def main() -> None:
                     help="sequences without blur: left out of the mean ratios, checked against "
                          "the 'not worse than monogs by more than 10 %% ATE' rule instead")
     args = ap.parse_args()
+    if bool(args.seq) == bool(args.from_runs):
+        ap.error("give --seq (run the benchmark) or --from-runs (tabulate earlier runs)")
+    if args.from_runs:
+        try:
+            runs = combine_runs(args.from_runs)
+        except EgsBenchError as exc:
+            sys.exit(f"{Path(sys.argv[0]).name}: error: {exc}")
+        df = summarise_seeds(runs)
+        print(df.to_markdown(index=False, floatfmt=".3f"))
+        sequences = list(dict.fromkeys(runs["sequence"]))
+        for line in (ratio_lines(df, args.unblurred, "combined runs.csv files")
+                     + seed_intervals(runs, args.unblurred, args.ablation_seq or sequences[:1])):
+            print(line)
+        return
     args.seeds = args.seeds or [0]
     for flag, values in (("--seed", args.seeds), ("--seq", args.seq),
                          ("--methods", args.methods.split(","))):

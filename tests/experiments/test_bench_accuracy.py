@@ -200,3 +200,41 @@ def test_bad_arguments_get_one_line(tmp_path: Path, monkeypatch) -> None:
     assert runs.set_index("sequence").loc["demo", "error"].tolist() == [
         "pending: sequence not generated yet"] * 2
     assert sorted(p.name for p in (tmp_path / "data").iterdir()) == ["sa"]
+
+
+def test_from_runs_tabulates_earlier_invocations_together(tmp_path: Path) -> None:
+    """Two invocations' runs.csv (seeds run apart, one run in both) give one table and one
+    summary; unfinished rows are left out; a run the files disagree on, a file that is not a
+    runs.csv, and no --seq / --from-runs at all each get one error line."""
+    first = _seed_runs({("s", "egs"): [(2.0, 30.0)], ("s", "monogs"): [(5.0, 26.0)]})
+    second = _seed_runs({("s", "egs"): [(2.0, 30.0), (4.0, 28.0)],
+                         ("s", "monogs"): [(5.0, 26.0), (5.0, 26.0)]})
+    second.loc[len(second)] = {"sequence": "s", "method": "egs", "seed": 2,
+                               "error": "running: status is 'running'"}
+    first.to_csv(tmp_path / "a.csv", index=False)
+    second.to_csv(tmp_path / "b.csv", index=False)
+
+    def bench(*args: str) -> subprocess.CompletedProcess:
+        return subprocess.run([sys.executable, str(SCRIPT), *args], cwd=tmp_path,
+                              capture_output=True, text=True, timeout=120)
+
+    both = bench("--from-runs", "a.csv", "--from-runs", "b.csv")
+    assert both.returncode == 0, both.stderr
+    assert ("s: ATE(egs)/ATE(monogs) = 0.600, PSNR(egs) - PSNR(monogs) = +3.00 dB "
+            "(seeds finished: egs 2/2, monogs 2/2)") in both.stdout
+    assert ("interval of the mean over the blurred sequences: ATE ratio [0.400, 0.800], "
+            "PSNR gain [+2.00, +4.00] dB") in both.stdout
+    assert not (tmp_path / "bench_out").exists()
+
+    first.loc[0, "ate_cm"] = 2.5
+    first.to_csv(tmp_path / "a.csv", index=False)
+    (tmp_path / "c.csv").write_text("sequence,method\ns,egs\n")
+    for args, message in [(("--from-runs", "a.csv", "--from-runs", "b.csv"),
+                           "s/egs/seed0: a.csv and b.csv give it different numbers"),
+                          (("--from-runs", "c.csv"), "c.csv: not a runs.csv of this benchmark"),
+                          (("--from-runs", "nosuch.csv"), "nosuch.csv: cannot read it"),
+                          ((), "give --seq (run the benchmark) or --from-runs")]:
+        result = bench(*args)
+        assert result.returncode != 0, args
+        last = result.stderr.strip().splitlines()[-1]
+        assert last.startswith("bench_slam_accuracy.py: error: ") and message in last, last
