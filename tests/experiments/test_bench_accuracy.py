@@ -238,3 +238,21 @@ def test_from_runs_tabulates_earlier_invocations_together(tmp_path: Path) -> Non
         assert result.returncode != 0, args
         last = result.stderr.strip().splitlines()[-1]
         assert last.startswith("bench_slam_accuracy.py: error: ") and message in last, last
+
+
+def test_documented_paper_scale_summary_is_what_the_benchmark_prints() -> None:
+    """BENCHMARKS.md's paper-scale summary lines are the benchmark's own output on the runs it
+    lists (docs/notes/paper_scale_runs.csv): the documented numbers cannot drift from the
+    table's rows or from the code that summarises them."""
+    root = SCRIPT.parents[1]
+    text = (root / "BENCHMARKS.md").read_text()
+    command = "--from-runs docs/notes/paper_scale_runs.csv \\\n      --unblurred office-l-sharp"
+    assert command in text
+    block = text.split(command, 1)[1].split("\n\n", 2)[1]
+    documented = [line.strip() for line in block.splitlines()]
+    bench = _load_bench()
+    runs = bench.combine_runs([root / "docs/notes/paper_scale_runs.csv"])
+    printed = (bench.ratio_lines(bench.summarise_seeds(runs), ["office-l-sharp"],
+                                 "combined runs.csv files")
+               + bench.seed_intervals(runs, ["office-l-sharp"], ["office-l"]))
+    assert documented == printed
