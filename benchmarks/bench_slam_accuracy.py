@@ -220,8 +220,9 @@ def seed_intervals(runs: pd.DataFrame, unblurred: list[str], ablation_seqs: list
     resampled within each sequence and method, independently) of the mean ATE ratio and PSNR
     gain of egs over monogs across the blurred sequences, and, on each ablation sequence, of
     every other method's mean ATE and PSNR minus egs's. Needs two or more finished seeds per
-    cell; with three seeds a cell has only 10 distinct resamples and the bootstrap understates
-    the spread by about (n - 1) / n in variance, so the interval is a guide, not a test."""
+    cell; with three seeds a cell has only 10 distinct resamples and the bootstrap variance of
+    a mean is (n - 1) / n times the usual estimate (too narrow), so the interval is a guide,
+    not a test."""
     if "ate_cm" not in runs or "psnr_db" not in runs:
         return []
     means = resample_seed_means(runs, n_resamples, np.random.default_rng(seed))
