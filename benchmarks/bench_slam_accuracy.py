@@ -259,6 +259,19 @@ def seed_intervals(runs: pd.DataFrame, unblurred: list[str], ablation_seqs: list
     return lines
 
 
+def report(runs: pd.DataFrame, unblurred: list[str], ablation_seqs: list[str],
+           setting: str) -> tuple[pd.DataFrame, list[str]]:
+    """Print the per-(sequence, method) table of ``runs`` and the summary lines; return both
+    (the table from :func:`summarise_seeds`, the lines of :func:`ratio_lines` then
+    :func:`seed_intervals`)."""
+    df = summarise_seeds(runs)
+    print(df.to_markdown(index=False, floatfmt=".3f"))
+    summary = ratio_lines(df, unblurred, setting) + seed_intervals(runs, unblurred, ablation_seqs)
+    for line in summary:
+        print(line)
+    return df, summary
+
+
 def combine_runs(paths: list[Path]) -> pd.DataFrame:
     """The finished runs of several ``runs.csv`` files (this script's per-run output), one row
     per (sequence, method, seed). Raises :class:`EgsBenchError` naming the file when one cannot
@@ -321,12 +334,8 @@ def main() -> None:
             runs = combine_runs(args.from_runs)
         except EgsBenchError as exc:
             sys.exit(f"{Path(sys.argv[0]).name}: error: {exc}")
-        df = summarise_seeds(runs)
-        print(df.to_markdown(index=False, floatfmt=".3f"))
         sequences = list(dict.fromkeys(runs["sequence"]))
-        for line in (ratio_lines(df, args.unblurred, "combined runs.csv files")
-                     + seed_intervals(runs, args.unblurred, args.ablation_seq or sequences[:1])):
-            print(line)
+        report(runs, args.unblurred, args.ablation_seq or sequences[:1], "combined runs.csv files")
         return
     args.seeds = args.seeds or [0]
     for flag, values in (("--seed", args.seeds), ("--seq", args.seq),
@@ -348,14 +357,10 @@ def main() -> None:
         sys.exit(f"{Path(sys.argv[0]).name}: error: {exc}")
     args.out.mkdir(parents=True, exist_ok=True)
     write_text_atomic(args.out / "runs.csv", runs.to_csv(index=False))
-    df = summarise_seeds(runs)
+    df, summary = report(runs, args.unblurred, args.ablation_seq or args.seq[:1],
+                         f"preset {args.preset}")
     write_text_atomic(args.out / "accuracy.csv", df.to_csv(index=False))
-    print(df.to_markdown(index=False, floatfmt=".3f"))
     write_text_atomic(args.out / "accuracy.md", df.to_markdown(index=False, floatfmt=".3f") + "\n")
-    summary = (ratio_lines(df, args.unblurred, f"preset {args.preset}")
-               + seed_intervals(runs, args.unblurred, args.ablation_seq or args.seq[:1]))
-    for line in summary:
-        print(line)
     write_text_atomic(args.out / "accuracy_summary.txt", "".join(f"{x}\n" for x in summary))
 
 

@@ -252,7 +252,5 @@ def test_documented_paper_scale_summary_is_what_the_benchmark_prints() -> None:
     documented = [line.strip() for line in block.splitlines()]
     bench = _load_bench()
     runs = bench.combine_runs([root / "docs/notes/paper_scale_runs.csv"])
-    printed = (bench.ratio_lines(bench.summarise_seeds(runs), ["office-l-sharp"],
-                                 "combined runs.csv files")
-               + bench.seed_intervals(runs, ["office-l-sharp"], ["office-l"]))
+    _, printed = bench.report(runs, ["office-l-sharp"], ["office-l"], "combined runs.csv files")
     assert documented == printed
