@@ -1,0 +1,85 @@
+"""``benchmarks/oracle_tracking.py``: its pose errors against analytic offsets, and the tracker
+wrapper that substitutes ground truth only up to ``--oracle-until`` while recording the
+tracker's own errors."""
+
+import csv
+import importlib.util
+import io
+import math
+from pathlib import Path
+from types import ModuleType, SimpleNamespace
+
+import numpy as np
+import pytest
+
+import egs_bench.slam.system as slam_system
+from egs_bench.geometry import invert_pose
+from egs_bench.geometry.lie import se3_exp
+from egs_bench.slam.frames import FrameState
+from egs_bench.slam.tracker import TrackResult
+
+SCRIPT = Path(__file__).resolve().parents[2] / "benchmarks" / "oracle_tracking.py"
+
+
+def _script() -> ModuleType:
+    spec = importlib.util.spec_from_file_location("oracle_tracking", SCRIPT)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def _camera_to_world(x: float, yaw_deg: float) -> np.ndarray:
+    pose = np.eye(4)
+    c, s = math.cos(math.radians(yaw_deg)), math.sin(math.radians(yaw_deg))
+    pose[:3, :3] = [[c, 0, s], [0, 1, 0], [-s, 0, c]]
+    pose[:3, 3] = [x, 0.3, -1.2]
+    return pose
+
+
+def test_pose_error_matches_analytic_offsets() -> None:
+    oracle = _script()
+    truth_cw = invert_pose(_camera_to_world(0.50, 10.0))
+    # Camera centre 3 cm further along x, camera turned 7 degrees further about y.
+    estimate_cw = invert_pose(_camera_to_world(0.53, 17.0))
+    cm, deg = oracle.pose_error(estimate_cw, truth_cw)
+    assert cm == pytest.approx(3.0, abs=1e-9)
+    assert deg == pytest.approx(7.0, abs=1e-9)
+    assert oracle.pose_error(truth_cw, truth_cw) == pytest.approx((0.0, 0.0), abs=1e-6)
+
+
+def test_oracle_until_keeps_the_trackers_estimates_after_n_and_records_errors(
+        monkeypatch) -> None:
+    oracle = _script()
+    times = np.linspace(0.0, 1.0, 11)
+    truth_wc = np.stack([_camera_to_world(0.1 * t, 5.0 * t) for t in times])
+    seq = SimpleNamespace(
+        path=Path("fake"), dense_trajectory=SimpleNamespace(timestamps=times, poses=truth_wc),
+        exposure=lambda i: (int(round(times[i] * 1e6)), int(round(times[i + 1] * 1e6))))
+    offset = se3_exp(np.array([0.02, 0.0, 0.0, 0.0, 0.0, 0.0]))  # 2 cm along camera x
+
+    def fake_track(gmap, crf, obs, init, *args, **kwargs):
+        truth_cw = invert_pose(truth_wc[obs.index + 1])
+        start_cw = invert_pose(truth_wc[obs.index])
+        return TrackResult(FrameState(obs.index, offset @ start_cw, offset @ truth_cw,
+                                      0.1, 0.2), 0.0, 5, True)
+
+    monkeypatch.setattr(slam_system, "track_frame", fake_track)
+    errors: list[tuple[float, ...]] = []
+    oracle.install_oracle(seq, until=1, errors=errors)
+    for i in range(3):
+        obs = SimpleNamespace(index=i, fractions=np.linspace(0, 1, 4))
+        init = FrameState(i, invert_pose(truth_wc[i]), invert_pose(truth_wc[i]))
+        state = slam_system.track_frame(None, None, obs, init).state
+        substituted = np.allclose(state.pose1_cw, invert_pose(truth_wc[i + 1]), atol=1e-9)
+        assert substituted == (i <= 1), i
+        assert (state.exp_a, state.exp_b) == (0.1, 0.2)  # exposure stays the tracker's
+    rows = list(csv.DictReader(io.StringIO(oracle.errors_csv(errors))))
+    assert [int(r["frame"]) for r in rows] == [0, 1, 2]
+    for r in rows:
+        assert float(r["tau_cm"]) == pytest.approx(2.0, abs=1e-5)
+        assert float(r["start_cm"]) == pytest.approx(2.0, abs=1e-5)
+        assert float(r["tau_deg"]) == pytest.approx(0.0, abs=1e-4)
+        # The prediction is the previous exposure end: one step of the true motion away.
+        assert float(r["predicted_cm"]) == pytest.approx(1.0, abs=1e-4)
+        assert float(r["predicted_deg"]) == pytest.approx(0.5, abs=1e-4)
