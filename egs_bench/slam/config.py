@@ -131,6 +131,10 @@ class BudgetConfig:
     resolution_scale: float = 1.0       # internal processing resolution factor
     segments: int = 4                   # K exposure segments of the blur model (paper)
     tracking_iters: int = 100           # (MonoGS)
+    # Iterations for a frame whose prediction has no velocity yet (frame 1 under the
+    # constant-velocity model): its start is off by the whole inter-frame motion, not by the
+    # error of a prediction. None = tracking_iters.
+    tracking_iters_no_prior: int | None = None
     lr_rot: float = 0.003               # (MonoGS)
     lr_trans: float = 0.001             # (MonoGS)
     tracking_lr_final: float = 1.0      # pose lr decays exponentially to this factor
@@ -285,6 +289,8 @@ class SlamConfig:
         _require(b.segments >= 1, "budget.segments", "must be >= 1")
         for name in ("tracking_iters", "init_iters", "mapping_iters", "pose_window"):
             _require(getattr(b, name) >= 0, f"budget.{name}", "must be >= 0")
+        _require(b.tracking_iters_no_prior is None or b.tracking_iters_no_prior >= 0,
+                 "budget.tracking_iters_no_prior", "must be >= 0 (or null: tracking_iters)")
         _require(b.window_size >= 3, "budget.window_size", "must be >= 3")
         _require(b.window_size > k.protected, "budget.window_size",
                  "must exceed keyframes.protected")

@@ -20,7 +20,7 @@ from egs_bench.slam.frames import FrameObs, FrameState, internal_intrinsics, loa
 from egs_bench.slam.keyframes import is_keyframe, update_window
 from egs_bench.slam.mapper import Mapper
 from egs_bench.slam.render_model import render_views
-from egs_bench.slam.tracker import predict_initial, track_frame
+from egs_bench.slam.tracker import last_motion, predict_initial, track_frame
 
 
 @dataclass
@@ -166,15 +166,23 @@ class SlamSystem:
             t_frame = time.perf_counter()
             obs = self._obs(i)
             t0, t1 = (int(v) for v in self.seq.exposure(i))
+            prev_prev_end = ends[i - 2] if i >= 2 else None
             init = predict_initial(i, states, cfg.tracking.motion_model, t0, t1, ends[i - 1],
-                                   ends[i - 2] if i >= 2 else None, starts[i - 1])
+                                   prev_prev_end, starts[i - 1])
+            # Without a velocity the start is off by the whole motion since the previous frame.
+            unprimed = (cfg.tracking.motion_model == "constant-velocity" and last_motion(
+                states, cfg.tracking.motion_model, ends[i - 1], prev_prev_end,
+                starts[i - 1]) is None)
+            iters = (cfg.budget.tracking_iters_no_prior
+                     if unprimed and cfg.budget.tracking_iters_no_prior is not None else None)
             anchor = None
             since_prev = max(t1 - ends[i - 1], 1)
             short = t1 - t0 < cfg.tracking.short_exposure_ratio * since_prev
             if cfg.tracking.continuous_exposure or short:
                 anchor = (states[-1].pose1_cw, (t0 - ends[i - 1]) / since_prev)
             tr = track_frame(self.gmap, self.crf, obs, init, self.K, self.cam.width,
-                             self.cam.height, cfg, self.theta, self.eps, start_anchor=anchor)
+                             self.cam.height, cfg, self.theta, self.eps, start_anchor=anchor,
+                             iterations=iters)
             why = self._diverged(states[-1], tr.state, tr.loss, recent_losses)
             diverged = why is not None
             if diverged:

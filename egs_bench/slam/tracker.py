@@ -66,7 +66,8 @@ def anchored_start(anchor: tuple[np.ndarray, float], pose1_cw: np.ndarray
 def track_frame(gmap: GaussianMap, crf: CameraResponse, obs: FrameObs, init: FrameState,
                 K: torch.Tensor, width: int, height: int, cfg: SlamConfig,
                 theta: tuple[float, float], eps: float, lr_scale: float = 1.0,
-                start_anchor: tuple[np.ndarray, float] | None = None) -> TrackResult:
+                start_anchor: tuple[np.ndarray, float] | None = None,
+                iterations: int | None = None) -> TrackResult:
     """Estimate ``T_0, T_tau`` (and exposure a, b) of one frame against the fixed map.
 
     Args:
@@ -77,7 +78,10 @@ def track_frame(gmap: GaussianMap, crf: CameraResponse, obs: FrameObs, init: Fra
             but tied to the motion since the previous frame, ``T_0 = T(f0)`` on the path from
             the previous ``T_tau`` to this ``T_tau`` (constant velocity across the gap between
             exposures), so only ``T_tau`` is estimated (``continuous_exposure``, short exposures).
+        iterations: the iteration budget (the learning rate decays over it); None =
+            ``budget.tracking_iters``.
     """
+    n_iters = cfg.budget.tracking_iters if iterations is None else iterations
     fractions = obs.fractions
     blur = len(fractions) > 1
     anchor = start_anchor if blur else None
@@ -90,7 +94,7 @@ def track_frame(gmap: GaussianMap, crf: CameraResponse, obs: FrameObs, init: Fra
         lr = np.r_[lr, [cfg.tracking.lr_exposure] * 2]
     # Exponential decay from lr to lr x tracking_lr_final over the iteration budget: large first
     # steps follow fast motion, small last steps stop Adam's oscillation around the optimum.
-    decay = cfg.budget.tracking_lr_final ** (1.0 / max(cfg.budget.tracking_iters - 1, 1))
+    decay = cfg.budget.tracking_lr_final ** (1.0 / max(n_iters - 1, 1))
     adam = HostAdam(lr, decay)
     targets = prepare_targets(obs, cfg, theta, tracking=True, use_events=cfg.method.event_tracking)
     curve = crf.frozen()
@@ -98,7 +102,7 @@ def track_frame(gmap: GaussianMap, crf: CameraResponse, obs: FrameObs, init: Fra
     like = targets.rgb
     m = len(fractions)
     loss_val, it, converged = math.inf, 0, False
-    for step_i in range(1, cfg.budget.tracking_iters + 1):
+    for step_i in range(1, n_iters + 1):
         it = step_i
         # Map from the free twists (xi_0, xi_1 | xi_1) to the end twists (xi_0, xi_1) [12, 6n].
         select = np.zeros((12, 6 * n_free))
@@ -141,6 +145,25 @@ def track_frame(gmap: GaussianMap, crf: CameraResponse, obs: FrameObs, init: Fra
     return TrackResult(state, loss_val, it, converged)
 
 
+def last_motion(history: list[FrameState], motion_model: str, prev_end_us: int | None,
+                prev_prev_end_us: int | None, prev_start_us: int | None = None
+                ) -> tuple[np.ndarray, int] | None:
+    """The most recent estimated motion ``(relative pose [4, 4], its span in us)`` that the
+    constant-velocity model extrapolates, or None when there is none yet (or the model is
+    ``constant-position``); see :func:`predict_initial`."""
+    if motion_model != "constant-velocity" or prev_end_us is None:
+        return None
+    last = history[-1]
+    if len(history) >= 2 and prev_prev_end_us is not None and prev_end_us > prev_prev_end_us:
+        # motion over the last interval
+        return last.pose1_cw @ invert_pose(history[-2].pose1_cw), prev_end_us - prev_prev_end_us
+    if prev_start_us is not None and prev_end_us > prev_start_us and not np.array_equal(
+            last.pose0_cw, last.pose1_cw):
+        # motion during the last exposure
+        return last.pose1_cw @ invert_pose(last.pose0_cw), prev_end_us - prev_start_us
+    return None
+
+
 def predict_initial(index: int, history: list[FrameState], motion_model: str,
                     t_start_us: int, t_end_us: int, prev_end_us: int | None,
                     prev_prev_end_us: int | None, prev_start_us: int | None = None
@@ -157,18 +180,10 @@ def predict_initial(index: int, history: list[FrameState], motion_model: str,
     """
     last = history[-1]
     p_last = last.pose1_cw
-    if motion_model != "constant-velocity" or prev_end_us is None:
+    motion = last_motion(history, motion_model, prev_end_us, prev_prev_end_us, prev_start_us)
+    if motion is None or prev_end_us is None:
         return FrameState(index, p_last.copy(), p_last.copy(), last.exp_a, last.exp_b)
-    rel, span = None, 0
-    if len(history) >= 2 and prev_prev_end_us is not None and prev_end_us > prev_prev_end_us:
-        rel = p_last @ invert_pose(history[-2].pose1_cw)  # motion over the last interval
-        span = prev_end_us - prev_prev_end_us
-    elif prev_start_us is not None and prev_end_us > prev_start_us and not np.array_equal(
-            last.pose0_cw, last.pose1_cw):
-        rel = p_last @ invert_pose(last.pose0_cw)  # motion during the last exposure
-        span = prev_end_us - prev_start_us
-    if rel is None:
-        return FrameState(index, p_last.copy(), p_last.copy(), last.exp_a, last.exp_b)
+    rel, span = motion
     scale = (t_end_us - prev_end_us) / span
     xi = np.r_[rel[:3, 3], so3_log(rel[:3, :3])]  # small motion: twist ~ (t, log R)
     pred1 = se3_exp(xi * scale) @ p_last
