@@ -47,6 +47,31 @@ def egs_run(tiny_room: Path, tmp_path_factory) -> tuple[RunFolder, Sequence]:
     return run, seq
 
 
+def test_frame_without_velocity_gets_the_no_prior_iteration_budget(tiny_sequence: Path,
+                                                                  tmp_path: Path,
+                                                                  monkeypatch) -> None:
+    """Frame 1 has no velocity to extrapolate: it is tracked with
+    ``tracking_iters_no_prior`` iterations; later frames with ``tracking_iters``."""
+    from egs_bench.slam import system
+
+    seq = Sequence.open(tiny_sequence)
+    cfg = methods.BUILTIN["monogs"].config("cpu").replace(
+        **{**FAST, "tracking_iters": 2, "init_iters": 2, "tracking_iters_no_prior": 5})
+    real = system.track_frame
+    used: list[tuple[int, int]] = []
+
+    def counting(gmap, crf, obs, init, *args, **kw):
+        res = real(gmap, crf, obs, init, *args, **kw)
+        used.append((obs.index, res.iterations))
+        return res
+
+    monkeypatch.setattr(system, "track_frame", counting)
+    cfg = cfg.replace(converged_threshold=1e-12)  # run every iteration of the budget
+    run_slam(seq, tmp_path / "run", method_name="monogs", config=cfg, max_frames=4,
+             progress=False)
+    assert used == [(1, 5), (2, 2), (3, 2)]
+
+
 @pytest.mark.slow
 def test_egs_end_to_end_writes_complete_run(egs_run) -> None:
     run, seq = egs_run
