@@ -15,10 +15,8 @@ import pytest
 REPO_ROOT = Path(__file__).resolve().parents[2]
 
 # The cheapest real SLAM run: every stage once on the 4-frame plane sequence.
-# No re-tracking of frame 1: 2 tracking steps always run at their step limit.
 QUICK_RUN = ["--preset", "cpu", "--quiet", "--set", "init_iters=2", "--set", "tracking_iters=2",
-             "--set", "tracking_iters_no_prior=null", "--set", "mapping_iters=1",
-             "--set", "resolution_scale=1.0"]
+             "--set", "mapping_iters=1", "--set", "resolution_scale=1.0"]
 
 
 def python_subprocess(code: str, cwd: Path) -> subprocess.Popen:

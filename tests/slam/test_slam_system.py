@@ -138,8 +138,8 @@ def test_divergence_falls_back_to_retracking_then_previous_pose(tiny_sequence: P
     from egs_bench.slam import system
 
     seq = Sequence.open(tiny_sequence)
-    cfg = methods.BUILTIN["monogs"].config("cpu").replace(  # frame 1 tracked once per attempt
-        **{**FAST, "tracking_iters": 2, "init_iters": 2, "tracking_iters_no_prior": None})
+    cfg = methods.BUILTIN["monogs"].config("cpu").replace(
+        **{**FAST, "tracking_iters": 2, "init_iters": 2})
     real = system.track_frame
     calls: list[tuple[int, float]] = []
 
