@@ -131,10 +131,9 @@ class BudgetConfig:
     resolution_scale: float = 1.0       # internal processing resolution factor
     segments: int = 4                   # K exposure segments of the blur model (paper)
     tracking_iters: int = 100           # (MonoGS)
-    # Iterations for re-tracking a frame whose prediction has no velocity yet (frame 1 under
-    # the constant-velocity model) when its pose ran at the step limit of tracking_iters: its
-    # start is off by the whole inter-frame motion, not by a prediction's error (system.py,
-    # STEP_LIMITED). None = no re-tracking.
+    # Iterations for a frame whose prediction has no velocity yet (frame 1 under the
+    # constant-velocity model): its start is off by the whole inter-frame motion, not by the
+    # error of a prediction. None = tracking_iters.
     tracking_iters_no_prior: int | None = None
     lr_rot: float = 0.003               # (MonoGS)
     lr_trans: float = 0.001             # (MonoGS)
@@ -384,9 +383,9 @@ CPU_BUDGET = BudgetConfig(
     lr_rot=0.006,
     lr_trans=0.006,
     tracking_lr_final=0.1,
-    # Frame 1 has no velocity yet: on `office-l` (5.2 cm / 2.8 deg per frame from frame 0) the
-    # 20 steps ran at their limit and ended 6.8 cm off (120-frame ATE 3.3 cm); re-tracked with
-    # 100 (the paper budget's count) 1.3 cm off, ATE 1.1 cm (docs/notes/slam.md finding 35).
+    # Frame 1 has no velocity yet: on `office-l` (5.2 cm / 2.8 deg per frame from frame 0) 20
+    # steps ended 6.8 cm off and the 120-frame ATE was 3.3 cm; 100 (MonoGS's count, the paper
+    # budget's) end 1.3 cm off and the ATE is 1.1 cm (docs/notes/slam.md finding 35).
     tracking_iters_no_prior=100,
     converged_threshold=2e-4,
     init_iters=150,

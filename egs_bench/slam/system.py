@@ -20,20 +20,7 @@ from egs_bench.slam.frames import FrameObs, FrameState, internal_intrinsics, loa
 from egs_bench.slam.keyframes import is_keyframe, update_window
 from egs_bench.slam.mapper import Mapper
 from egs_bench.slam.render_model import render_views
-from egs_bench.slam.tracker import (
-    last_motion,
-    predict_initial,
-    reach_used,
-    schedule_reach,
-    track_frame,
-)
-
-# Fraction of its step reach (tracker.schedule_reach) a pose without a velocity prior may use
-# before it is re-tracked with `budget.tracking_iters_no_prior` iterations. Frame 1 at the cpu
-# budget used 102-108 % on `office-l`, `office-l-sharp` and `studio-l` (5.2-5.3 cm per frame
-# from frame 0; egs ended 6.8 and 3.0 cm off, re-tracked 1.3 and 0.6 cm), and 24-54 % on
-# `corridor-l`, `demo` and `livingroom-l` (re-tracking `livingroom-l` changed 0.64 to 0.67 cm).
-STEP_LIMITED = 0.8
+from egs_bench.slam.tracker import last_motion, predict_initial, track_frame
 
 
 @dataclass
@@ -186,26 +173,16 @@ class SlamSystem:
             unprimed = (cfg.tracking.motion_model == "constant-velocity" and last_motion(
                 states, cfg.tracking.motion_model, ends[i - 1], prev_prev_end,
                 starts[i - 1]) is None)
+            iters = (cfg.budget.tracking_iters_no_prior
+                     if unprimed and cfg.budget.tracking_iters_no_prior is not None else None)
             anchor = None
             since_prev = max(t1 - ends[i - 1], 1)
             short = t1 - t0 < cfg.tracking.short_exposure_ratio * since_prev
             if cfg.tracking.continuous_exposure or short:
                 anchor = (states[-1].pose1_cw, (t0 - ends[i - 1]) / since_prev)
             tr = track_frame(self.gmap, self.crf, obs, init, self.K, self.cam.width,
-                             self.cam.height, cfg, self.theta, self.eps, start_anchor=anchor)
-            longer = cfg.budget.tracking_iters_no_prior
-            if unprimed and longer is not None and longer > cfg.budget.tracking_iters:
-                used = reach_used(init, tr.state, schedule_reach(cfg))
-                # Only a pose that ran at the schedule's step limit (the budget, not the loss,
-                # stopped it) is re-tracked: 100 steps on every frame 1 moved `demo`'s frame 1
-                # from 0.9 to 1.2 cm off and its 12-frame ATE from 0.47 to 1.22 cm.
-                self.log(f"frame {i}: no velocity yet; the pose moved {used:.0%} of its step "
-                         "reach" + (f", re-tracking with {longer} iterations"
-                                    if used > STEP_LIMITED else ""))
-                if used > STEP_LIMITED:
-                    tr = track_frame(self.gmap, self.crf, obs, init, self.K, self.cam.width,
-                                     self.cam.height, cfg, self.theta, self.eps,
-                                     start_anchor=anchor, iterations=longer)
+                             self.cam.height, cfg, self.theta, self.eps, start_anchor=anchor,
+                             iterations=iters)
             why = self._diverged(states[-1], tr.state, tr.loss, recent_losses)
             diverged = why is not None
             if diverged:

@@ -145,30 +145,6 @@ def track_frame(gmap: GaussianMap, crf: CameraResponse, obs: FrameObs, init: Fra
     return TrackResult(state, loss_val, it, converged)
 
 
-def schedule_reach(cfg: SlamConfig, iterations: int | None = None,
-                   lr_scale: float = 1.0) -> np.ndarray:
-    """The most a tracked pose can move along each twist coordinate over one tracking
-    schedule, [6] (translation in m, rotation in rad): Adam moves a coordinate by about its
-    learning rate per step when the gradient keeps its sign, and the rate decays as in
-    :func:`track_frame`."""
-    n_iters = cfg.budget.tracking_iters if iterations is None else iterations
-    decay = cfg.budget.tracking_lr_final ** (1.0 / max(n_iters - 1, 1))
-    total = float(np.sum(decay ** np.arange(n_iters)))
-    return np.r_[[cfg.budget.lr_trans] * 3, [cfg.budget.lr_rot] * 3] * lr_scale * total
-
-
-def reach_used(init: FrameState, state: FrameState, reach: np.ndarray) -> float:
-    """The largest fraction of ``reach`` [6] that tracking moved ``T_0`` or ``T_tau`` along
-    one twist coordinate from ``init`` to ``state``; near 1 the step schedule, not the loss,
-    stopped the pose."""
-    used = 0.0
-    for before, after in ((init.pose0_cw, state.pose0_cw), (init.pose1_cw, state.pose1_cw)):
-        rel = after @ invert_pose(before)
-        xi = np.r_[rel[:3, 3], so3_log(rel[:3, :3])]  # the tracker's left-multiplied twist
-        used = max(used, float(np.max(np.abs(xi) / reach)))
-    return used
-
-
 def last_motion(history: list[FrameState], motion_model: str, prev_end_us: int | None,
                 prev_prev_end_us: int | None, prev_start_us: int | None = None
                 ) -> tuple[np.ndarray, int] | None:

@@ -375,23 +375,3 @@ def test_last_motion_and_constant_velocity_prediction() -> None:
     # A non-degenerate frame-0 exposure trajectory is itself a velocity.
     moving = [FrameState(0, p0, _pose_cw((0.01, 0.0, 0.0)))]
     assert last_motion(moving, "constant-velocity", 30_000, None, 10_000) is not None
-
-
-def test_schedule_reach_and_the_fraction_a_pose_used() -> None:
-    """Reach is the sum of the decaying learning rates; the fraction used is the largest
-    per-coordinate move of either exposure pose over it."""
-    from egs_bench.slam.frames import FrameState
-    from egs_bench.slam.tracker import reach_used, schedule_reach
-
-    cfg = cpu_preset().replace(tracking_iters=3, tracking_lr_final=0.25, lr_trans=0.01,
-                               lr_rot=0.02)
-    # decay 0.5 per step: 1 + 0.5 + 0.25 = 1.75 learning rates
-    np.testing.assert_allclose(schedule_reach(cfg), [0.0175] * 3 + [0.035] * 3)
-    reach = schedule_reach(cfg)
-    start = _pose_cw((0.0, 0.0, 0.0))
-    init = FrameState(1, start, start.copy())
-    moved = FrameState(1, start.copy(), _pose_cw((0.0, 0.014, 0.0)))  # 0.8 of 1.75 cm
-    assert reach_used(init, moved, reach) == pytest.approx(0.8)
-    turned = FrameState(1, _pose_cw((0.0, 0.0, 0.0), np.degrees(0.035)), start.copy())
-    assert reach_used(init, turned, reach) == pytest.approx(1.0)  # T_0 counts too
-    assert reach_used(init, init, reach) == 0.0

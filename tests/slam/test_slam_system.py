@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import math
 import signal
 from pathlib import Path
 
@@ -48,38 +47,29 @@ def egs_run(tiny_room: Path, tmp_path_factory) -> tuple[RunFolder, Sequence]:
     return run, seq
 
 
-@pytest.mark.parametrize("limit, expected", [(-1.0, [(1, 2), (1, 5), (2, 2), (3, 2)]),
-                                             (math.inf, [(1, 2), (2, 2), (3, 2)])])
-def test_step_limited_frame_without_velocity_is_retracked_longer(
-        tiny_sequence: Path, tmp_path: Path, monkeypatch, limit: float,
-        expected: list[tuple[int, int]]) -> None:
-    """Frame 1 has no velocity to extrapolate: when its pose used more than STEP_LIMITED of
-    its step reach it is tracked again from the prediction with ``tracking_iters_no_prior``
-    iterations; otherwise, and on later frames, ``tracking_iters`` is all it gets."""
+def test_frame_without_velocity_gets_the_no_prior_iteration_budget(tiny_sequence: Path,
+                                                                  tmp_path: Path,
+                                                                  monkeypatch) -> None:
+    """Frame 1 has no velocity to extrapolate: it is tracked with
+    ``tracking_iters_no_prior`` iterations; later frames with ``tracking_iters``."""
     from egs_bench.slam import system
 
     seq = Sequence.open(tiny_sequence)
     cfg = methods.BUILTIN["monogs"].config("cpu").replace(
-        **{**FAST, "tracking_iters": 2, "init_iters": 2, "tracking_iters_no_prior": 5,
-           "converged_threshold": 1e-12})  # every iteration of the budget runs
+        **{**FAST, "tracking_iters": 2, "init_iters": 2, "tracking_iters_no_prior": 5})
     real = system.track_frame
     used: list[tuple[int, int]] = []
-    starts: list[np.ndarray] = []
 
     def counting(gmap, crf, obs, init, *args, **kw):
         res = real(gmap, crf, obs, init, *args, **kw)
         used.append((obs.index, res.iterations))
-        starts.append(init.pose1_cw.copy())
         return res
 
     monkeypatch.setattr(system, "track_frame", counting)
-    monkeypatch.setattr(system, "STEP_LIMITED", limit)
-    run = run_slam(seq, tmp_path / "run", method_name="monogs", config=cfg, max_frames=4,
-                   progress=False)
-    assert used == expected
-    if len(expected) == 4:  # the re-track starts from the prediction, not the first result
-        np.testing.assert_array_equal(starts[1], starts[0])
-        assert "re-tracking with 5 iterations" in (run.path / "log.txt").read_text()
+    cfg = cfg.replace(converged_threshold=1e-12)  # run every iteration of the budget
+    run_slam(seq, tmp_path / "run", method_name="monogs", config=cfg, max_frames=4,
+             progress=False)
+    assert used == [(1, 5), (2, 2), (3, 2)]
 
 
 @pytest.mark.slow
