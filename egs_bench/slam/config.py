@@ -383,10 +383,6 @@ CPU_BUDGET = BudgetConfig(
     lr_rot=0.006,
     lr_trans=0.006,
     tracking_lr_final=0.1,
-    # Frame 1 has no velocity yet: on `office-l` (5.2 cm / 2.8 deg per frame from frame 0) 20
-    # steps ended 6.8 cm off and the 120-frame ATE was 3.3 cm; 100 (MonoGS's count, the paper
-    # budget's) end 1.3 cm off and the ATE is 1.1 cm (docs/notes/slam.md finding 35).
-    tracking_iters_no_prior=100,
     converged_threshold=2e-4,
     init_iters=150,
     # 30 iterations x 3 views per keyframe: with 10 x 2 the map lagged behind the new keyframes
