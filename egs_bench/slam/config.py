@@ -133,7 +133,10 @@ class BudgetConfig:
     tracking_iters: int = 100           # (MonoGS)
     # Iterations for a frame whose prediction has no velocity yet (frame 1 under the
     # constant-velocity model): its start is off by the whole inter-frame motion, not by the
-    # error of a prediction. None = tracking_iters.
+    # error of a prediction. None = tracking_iters, in both presets: 100 at the cpu budget
+    # fixed `office-l`'s failed start (120 frames, egs 3.26 -> 1.06 cm ATE) but moved `demo`'s
+    # frame 1 from 0.88 to 1.24 cm off (12-frame ATE 0.47 -> 1.22 cm), and no test on the
+    # first, short tracking told the two apart (docs/notes/slam.md finding 35).
     tracking_iters_no_prior: int | None = None
     lr_rot: float = 0.003               # (MonoGS)
     lr_trans: float = 0.001             # (MonoGS)

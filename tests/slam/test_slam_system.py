@@ -47,16 +47,19 @@ def egs_run(tiny_room: Path, tmp_path_factory) -> tuple[RunFolder, Sequence]:
     return run, seq
 
 
-def test_frame_without_velocity_gets_the_no_prior_iteration_budget(tiny_sequence: Path,
-                                                                  tmp_path: Path,
-                                                                  monkeypatch) -> None:
+@pytest.mark.parametrize("no_prior, expected", [(5, [(1, 5), (2, 2), (3, 2)]),
+                                                (None, [(1, 2), (2, 2), (3, 2)])])
+def test_frame_without_velocity_gets_the_no_prior_iteration_budget(
+        tiny_sequence: Path, tmp_path: Path, monkeypatch, no_prior: int | None,
+        expected: list[tuple[int, int]]) -> None:
     """Frame 1 has no velocity to extrapolate: it is tracked with
-    ``tracking_iters_no_prior`` iterations; later frames with ``tracking_iters``."""
+    ``tracking_iters_no_prior`` iterations (None: ``tracking_iters``); later frames with
+    ``tracking_iters``."""
     from egs_bench.slam import system
 
     seq = Sequence.open(tiny_sequence)
     cfg = methods.BUILTIN["monogs"].config("cpu").replace(
-        **{**FAST, "tracking_iters": 2, "init_iters": 2, "tracking_iters_no_prior": 5})
+        **{**FAST, "tracking_iters": 2, "init_iters": 2, "tracking_iters_no_prior": no_prior})
     real = system.track_frame
     used: list[tuple[int, int]] = []
 
@@ -69,7 +72,7 @@ def test_frame_without_velocity_gets_the_no_prior_iteration_budget(tiny_sequence
     cfg = cfg.replace(converged_threshold=1e-12)  # run every iteration of the budget
     run_slam(seq, tmp_path / "run", method_name="monogs", config=cfg, max_frames=4,
              progress=False)
-    assert used == [(1, 5), (2, 2), (3, 2)]
+    assert used == expected
 
 
 @pytest.mark.slow
