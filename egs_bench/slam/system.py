@@ -170,11 +170,12 @@ class SlamSystem:
             init = predict_initial(i, states, cfg.tracking.motion_model, t0, t1, ends[i - 1],
                                    prev_prev_end, starts[i - 1])
             # Without a velocity the start is off by the whole motion since the previous frame.
-            unprimed = (cfg.tracking.motion_model == "constant-velocity" and last_motion(
-                states, cfg.tracking.motion_model, ends[i - 1], prev_prev_end,
-                starts[i - 1]) is None)
-            iters = (cfg.budget.tracking_iters_no_prior
-                     if unprimed and cfg.budget.tracking_iters_no_prior is not None else None)
+            iters = None
+            if (cfg.budget.tracking_iters_no_prior is not None
+                    and cfg.tracking.motion_model == "constant-velocity"
+                    and last_motion(states, cfg.tracking.motion_model, ends[i - 1],
+                                    prev_prev_end, starts[i - 1]) is None):
+                iters = cfg.budget.tracking_iters_no_prior
             anchor = None
             since_prev = max(t1 - ends[i - 1], 1)
             short = t1 - t0 < cfg.tracking.short_exposure_ratio * since_prev
