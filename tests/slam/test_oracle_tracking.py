@@ -37,6 +37,18 @@ def _camera_to_world(x: float, yaw_deg: float) -> np.ndarray:
     return pose
 
 
+def _fake_sequence(exposure) -> tuple[SimpleNamespace, np.ndarray]:
+    """A sequence moving 0.1 m along x and turning 5 deg over 1 s (dense poses every 0.1 s),
+    with the given ``exposure(i) -> (start_us, end_us)``; returns it and its poses
+    (camera-to-world [11, 4, 4])."""
+    times = np.linspace(0.0, 1.0, 11)
+    truth_wc = np.stack([_camera_to_world(0.1 * t, 5.0 * t) for t in times])
+    seq = SimpleNamespace(
+        path=Path("fake"), dense_trajectory=SimpleNamespace(timestamps=times, poses=truth_wc),
+        exposure=exposure)
+    return seq, truth_wc
+
+
 def test_pose_error_matches_analytic_offsets() -> None:
     oracle = _script()
     truth_cw = invert_pose(_camera_to_world(0.50, 10.0))
@@ -51,11 +63,7 @@ def test_pose_error_matches_analytic_offsets() -> None:
 def test_oracle_until_keeps_the_trackers_estimates_after_n_and_records_errors(
         monkeypatch) -> None:
     oracle = _script()
-    times = np.linspace(0.0, 1.0, 11)
-    truth_wc = np.stack([_camera_to_world(0.1 * t, 5.0 * t) for t in times])
-    seq = SimpleNamespace(
-        path=Path("fake"), dense_trajectory=SimpleNamespace(timestamps=times, poses=truth_wc),
-        exposure=lambda i: (int(round(times[i] * 1e6)), int(round(times[i + 1] * 1e6))))
+    seq, truth_wc = _fake_sequence(lambda i: (100_000 * i, 100_000 * (i + 1)))
     offset = se3_exp(np.array([0.02, 0.0, 0.0, 0.0, 0.0, 0.0]))  # 2 cm along camera x
 
     def fake_track(gmap, crf, obs, init, *args, **kwargs):
@@ -83,3 +91,24 @@ def test_oracle_until_keeps_the_trackers_estimates_after_n_and_records_errors(
         # The prediction is the previous exposure end: one step of the true motion away.
         assert float(r["predicted_cm"]) == pytest.approx(1.0, abs=1e-4)
         assert float(r["predicted_deg"]) == pytest.approx(0.5, abs=1e-4)
+
+
+def test_exposure0_oracle_moves_frame0_start_only_for_the_blur_models_map_initialisation(
+        monkeypatch) -> None:
+    oracle = _script()
+    # Frame 0's exposure runs from t = 0.05 s (between two dense poses) to t = 0.1 s.
+    seq, truth_wc = _fake_sequence(lambda i: (50_000, 100_000))
+    seen: list[np.ndarray] = []
+    monkeypatch.setattr(oracle.Mapper, "optimise",
+                        lambda self, states, *a, **kw: seen.append(states[0].pose0_cw.copy()))
+    oracle.install_exposure0_oracle(seq)
+    end_cw = invert_pose(truth_wc[1])
+    for blur, initial in ((True, True), (True, False), (False, True)):
+        mapper = SimpleNamespace(cfg=SimpleNamespace(method=SimpleNamespace(blur_model=blur)))
+        oracle.Mapper.optimise(mapper, {0: FrameState(0, end_cw.copy(), end_cw.copy())},
+                               initial=initial)
+    moved, refinement, no_blur = seen
+    # Halfway between the poses at t = 0 and 0.1: camera centre x = 0.005 m, yaw 0.25 deg.
+    assert oracle.pose_error(moved, invert_pose(_camera_to_world(0.005, 0.25))) == \
+        pytest.approx((0.0, 0.0), abs=1e-4)
+    assert np.array_equal(refinement, end_cw) and np.array_equal(no_blur, end_cw)
