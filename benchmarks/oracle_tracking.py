@@ -35,6 +35,7 @@ import argparse
 import csv
 import io
 import math
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -74,19 +75,27 @@ def errors_csv(rows: list[tuple[float, ...]]) -> str:
     return text.getvalue()
 
 
+def ground_truth_w2c(seq) -> Callable[[int], np.ndarray]:
+    """``pose(t_us)``: the world-to-camera ground truth [4, 4] of ``seq`` at time ``t_us``
+    (microseconds), interpolated in ``groundtruth_dense.txt``."""
+    dense = seq.dense_trajectory
+    if dense is None:
+        raise SystemExit(f"{seq.path}: no groundtruth_dense.txt, cannot place exposure starts")
+
+    def pose(t_us: int) -> np.ndarray:
+        wc = interpolate_trajectory(dense.timestamps, dense.poses, np.array([t_us * 1e-6]))[0]
+        return invert_pose(wc)
+
+    return pose
+
+
 def install_oracle(seq, until: int | None = None,
                    errors: list[tuple[float, ...]] | None = None) -> None:
     """Make the SLAM system's tracker return ground-truth exposure trajectories of ``seq``
     for frames ``<= until`` (all frames when None); append each tracked frame's errors
     (:data:`ERROR_COLUMNS`) to ``errors`` when given."""
-    dense = seq.dense_trajectory
-    if dense is None:
-        raise SystemExit(f"{seq.path}: no groundtruth_dense.txt, cannot place exposure starts")
+    gt_w2c = ground_truth_w2c(seq)
     track = slam_system.track_frame
-
-    def gt_w2c(t_us: int) -> np.ndarray:
-        wc = interpolate_trajectory(dense.timestamps, dense.poses, np.array([t_us * 1e-6]))[0]
-        return invert_pose(wc)
 
     def oracle(gmap, crf, obs, init, *args, **kwargs):
         result = track(gmap, crf, obs, init, *args, **kwargs)
@@ -109,16 +118,12 @@ def install_exposure0_oracle(seq) -> None:
     """Make the map initialisation of methods with the blur model start from frame 0's
     ground-truth exposure start ``T_0`` (``T_tau`` stays where the system put it, at the
     ground truth)."""
-    dense = seq.dense_trajectory
-    if dense is None:
-        raise SystemExit(f"{seq.path}: no groundtruth_dense.txt, cannot place exposure starts")
+    gt_w2c = ground_truth_w2c(seq)
     optimise = Mapper.optimise
 
     def with_true_exposure0(self, states, *args, **kwargs):
         if kwargs.get("initial") and self.cfg.method.blur_model and 0 in states:
-            t0 = seq.exposure(0)[0]
-            wc = interpolate_trajectory(dense.timestamps, dense.poses, np.array([t0 * 1e-6]))[0]
-            states[0].pose0_cw = invert_pose(wc)
+            states[0].pose0_cw = gt_w2c(seq.exposure(0)[0])
         return optimise(self, states, *args, **kwargs)
 
     Mapper.optimise = with_true_exposure0  # type: ignore[method-assign]
