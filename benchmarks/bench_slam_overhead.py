@@ -44,7 +44,7 @@ from egs_bench.geometry import invert_pose  # noqa: E402
 from egs_bench.slam import methods  # noqa: E402
 from egs_bench.slam.frames import FrameState  # noqa: E402
 from egs_bench.slam.system import SlamSystem  # noqa: E402
-from egs_bench.slam.tracker import predict_initial, track_frame  # noqa: E402
+from egs_bench.slam.tracker import TrackRequest, predict_initial, track_frame  # noqa: E402
 
 # The package re-exports the function under the module's name, so fetch the module itself.
 rasterize_module = importlib.import_module("egs_bench.render.rasterize")
@@ -166,26 +166,25 @@ def measure(method: str, seq: Sequence, preset: str, device: str, iters: int,
     # A real map of frame 0 so the rasteriser sees realistic Gaussian counts.
     gt0 = invert_pose(np.asarray(seq.poses[0], dtype=np.float64))
     s0 = FrameState(0, gt0.copy(), gt0.copy())
-    obs0 = system._obs(0)
-    system._insert(obs0, s0, cfg.budget.pcd_downsample_init, 0)
+    obs0 = system.obs(0)
+    system.insert(obs0, s0, cfg.budget.pcd_downsample_init, 0)
     system.mapper.optimise({0: s0}, {0: obs0}, [0], [0], cfg.budget.init_iters, initial=True)
-    obs1 = system._obs(1)
+    obs1 = system.obs(1)
     t0, t1 = (int(v) for v in seq.exposure(1))
     e0 = int(seq.exposure(0)[1])
     init = predict_initial(1, [s0], cfg.tracking.motion_model, t0, t1, e0, None,
                            int(seq.exposure(0)[0]))
 
     def track(n: int):
-        c = cfg.replace(tracking_iters=n)
-        return track_frame(system.gmap, system.crf, obs1, init, system.K, system.cam.width,
-                           system.cam.height, c, system.theta, system.eps)
+        return track_frame(system.ctx, system.gmap, system.crf,
+                           TrackRequest(obs1, init, iterations=n))
 
     track(warmup)
     with counting() as (ops, host):
         track(iters)
     out: dict[str, object] = {
         "method": method, "preset": preset, "device": device,
-        "resolution": f"{system.cam.width}x{system.cam.height}", "gaussians": len(system.gmap),
+        "resolution": f"{system.ctx.width}x{system.ctx.height}", "gaussians": len(system.gmap),
         "tracking": {"slam_ops": _per_iter(ops.slam, iters),
                      "slam_launching_ops": _launching(ops.slam, iters),
                      "raster_ops": _per_iter(ops.raster, iters),
@@ -205,7 +204,7 @@ def measure(method: str, seq: Sequence, preset: str, device: str, iters: int,
     s1 = track(cfg.budget.tracking_iters).state
     states = {0: s0, 1: s1}
     observations = {0: obs0, 1: obs1}
-    system._insert(obs1, s1, cfg.budget.pcd_downsample, 1)
+    system.insert(obs1, s1, cfg.budget.pcd_downsample, 1)
     system.mapper.optimise(states, observations, [1, 0], [0, 1], warmup)
     with counting() as (ops, host):
         system.mapper.optimise(states, observations, [1, 0], [0, 1], iters)

@@ -25,8 +25,8 @@ the ground truth replaces them):
   truth before the map is initialised, for methods with the blur model (use it with
   ``--oracle-until`` to let the tracker run from frame 1).
 
-Diagnostic only: the SLAM system is not meant to accept poses from outside, so this script
-wraps the tracker function the system calls.
+The oracles are SLAM components (:mod:`egs_bench.slam.components`) that wrap the built-in
+tracker and mapper; the system runs them like any other.
 """
 
 from __future__ import annotations
@@ -40,17 +40,19 @@ from pathlib import Path
 
 import numpy as np
 
-import egs_bench.slam.system as slam_system
 from egs_bench.datasets.registry import load_sequence
 from egs_bench.eval.evaluate import evaluate_run
 from egs_bench.fileio import write_text_atomic
 from egs_bench.geometry import invert_pose, rotation_angle
 from egs_bench.geometry.se3 import interpolate_trajectory
 from egs_bench.runs.registry import get_method
+from egs_bench.slam.components import MapOptimiser, SlamComponents, Tracker
 from egs_bench.slam.config import parse_overrides
+from egs_bench.slam.context import SlamContext
 from egs_bench.slam.frames import FrameState
 from egs_bench.slam.mapper import Mapper
-from egs_bench.slam.runner import run_slam
+from egs_bench.slam.runner import RunSettings, run_slam
+from egs_bench.slam.tracker import GradientTracker, TrackRequest, TrackResult
 
 ERROR_COLUMNS = ("frame", "tau_cm", "tau_deg", "start_cm", "start_deg", "predicted_cm",
                  "predicted_deg")
@@ -89,44 +91,66 @@ def ground_truth_w2c(seq) -> Callable[[int], np.ndarray]:
     return pose
 
 
-def install_oracle(seq, until: int | None = None,
-                   errors: list[tuple[float, ...]] | None = None) -> None:
-    """Make the SLAM system's tracker return ground-truth exposure trajectories of ``seq``
-    for frames ``<= until`` (all frames when None); append each tracked frame's errors
-    (:data:`ERROR_COLUMNS`) to ``errors`` when given."""
-    gt_w2c = ground_truth_w2c(seq)
-    track = slam_system.track_frame
+class OracleTracker:
+    """A :class:`~egs_bench.slam.components.Tracker` that runs ``inner`` (so exposure
+    compensation is estimated and its errors can be recorded), then returns the ground-truth
+    exposure trajectory of ``seq`` for frames ``<= until`` (all frames when None). Appends
+    each tracked frame's errors (:data:`ERROR_COLUMNS`) to ``errors`` when given."""
 
-    def oracle(gmap, crf, obs, init, *args, **kwargs):
-        result = track(gmap, crf, obs, init, *args, **kwargs)
-        t0, t1 = seq.exposure(obs.index)
-        pose1 = gt_w2c(t1)
-        pose0 = gt_w2c(t0) if len(obs.fractions) > 1 else pose1.copy()
-        if errors is not None:
-            errors.append((obs.index, *pose_error(result.state.pose1_cw, pose1),
-                           *pose_error(result.state.pose0_cw, pose0),
-                           *pose_error(init.pose1_cw, pose1)))
-        if until is None or obs.index <= until:
+    def __init__(self, inner: Tracker, seq, until: int | None = None,
+                 errors: list[tuple[float, ...]] | None = None) -> None:
+        self.inner, self.seq, self.until, self.errors = inner, seq, until, errors
+        self.gt_w2c = ground_truth_w2c(seq)
+
+    def track(self, gmap, crf, request: TrackRequest) -> TrackResult:
+        result = self.inner.track(gmap, crf, request)
+        obs, init = request.obs, request.init
+        t0, t1 = self.seq.exposure(obs.index)
+        pose1 = self.gt_w2c(t1)
+        pose0 = self.gt_w2c(t0) if len(obs.fractions) > 1 else pose1.copy()
+        if self.errors is not None:
+            self.errors.append((obs.index, *pose_error(result.state.pose1_cw, pose1),
+                                *pose_error(result.state.pose0_cw, pose0),
+                                *pose_error(init.pose1_cw, pose1)))
+        if self.until is None or obs.index <= self.until:
             result.state = FrameState(obs.index, pose0, pose1, result.state.exp_a,
                                       result.state.exp_b)
         return result
 
-    slam_system.track_frame = oracle
+
+class TrueExposure0Mapper:
+    """A :class:`~egs_bench.slam.components.MapOptimiser` that puts frame 0's exposure start
+    ``T_0`` at the ground truth before ``inner`` initialises the map, for methods with the blur
+    model (``T_tau`` stays where the system put it, at the ground truth)."""
+
+    def __init__(self, inner: MapOptimiser, seq, blur_model: bool) -> None:
+        self.inner, self.blur_model = inner, blur_model
+        self.start_cw = ground_truth_w2c(seq)(seq.exposure(0)[0])
+
+    def optimise(self, states, observations, window, all_keyframes, iterations, *,
+                 initial=False, fixed_end_pose=0, report=None) -> float:
+        if initial and self.blur_model and 0 in states:
+            states[0].pose0_cw = self.start_cw.copy()
+        return self.inner.optimise(states, observations, window, all_keyframes, iterations,
+                                   initial=initial, fixed_end_pose=fixed_end_pose,
+                                   report=report)
+
+    def refine(self, states, observations, keyframes, iterations) -> float:
+        return self.inner.refine(states, observations, keyframes, iterations)
 
 
-def install_exposure0_oracle(seq) -> None:
-    """Make the map initialisation of methods with the blur model start from frame 0's
-    ground-truth exposure start ``T_0`` (``T_tau`` stays where the system put it, at the
-    ground truth)."""
-    gt_w2c = ground_truth_w2c(seq)
-    optimise = Mapper.optimise
+def oracle_components(seq, until: int | None, errors: list[tuple[float, ...]] | None,
+                      exposure0: bool) -> SlamComponents:
+    """The SLAM components of an oracle run: :class:`OracleTracker` around the built-in
+    tracker and, with ``exposure0``, :class:`TrueExposure0Mapper` around the built-in mapper."""
+    def tracker(ctx: SlamContext) -> Tracker:
+        return OracleTracker(GradientTracker(ctx), seq, until, errors)
 
-    def with_true_exposure0(self, states, *args, **kwargs):
-        if kwargs.get("initial") and self.cfg.method.blur_model and 0 in states:
-            states[0].pose0_cw = gt_w2c(seq.exposure(0)[0])
-        return optimise(self, states, *args, **kwargs)
+    def mapper(ctx: SlamContext, gmap, crf, rng) -> MapOptimiser:
+        inner = Mapper(ctx, gmap, crf, rng)
+        return TrueExposure0Mapper(inner, seq, ctx.cfg.method.blur_model) if exposure0 else inner
 
-    Mapper.optimise = with_true_exposure0  # type: ignore[method-assign]
+    return SlamComponents(tracker=tracker, mapper=mapper)
 
 
 def main() -> None:
@@ -147,9 +171,7 @@ def main() -> None:
         ap.error("--oracle-until must be >= 0")
     seq = load_sequence(args.seq)
     errors: list[tuple[float, ...]] = []
-    install_oracle(seq, args.oracle_until, errors)
-    if args.oracle_exposure0:
-        install_exposure0_oracle(seq)
+    components = oracle_components(seq, args.oracle_until, errors, args.oracle_exposure0)
     options = parse_overrides(args.overrides)
     print("| method | PSNR dB | SSIM | ATE cm | T_tau tracking error cm (mean) |")
     print("|:--|--:|--:|--:|--:|")
@@ -161,8 +183,10 @@ def main() -> None:
         cfg = method.config(args.preset).replace(**options)
         out = args.out / seq.name / name
         errors.clear()
-        run_slam(seq, out, method_name=name, config=cfg, preset=args.preset, seed=args.seed,
-                 max_frames=args.max_frames, progress=False)
+        run_slam(seq, out, method_name=name, config=cfg,
+                 settings=RunSettings(preset=args.preset, seed=args.seed,
+                                      max_frames=args.max_frames, progress=False),
+                 components=components)
         write_text_atomic(out / "tracking_errors.csv", errors_csv(errors))
         report = evaluate_run(out)
         r = report.get("rendering")

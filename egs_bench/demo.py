@@ -86,7 +86,7 @@ def run_demo(out: str | Path, *, sequence: str = DEMO_SEQUENCE,
         else:
             extra: dict = {"overwrite": True} if supports_overwrite(method) else {}
             if options and isinstance(method, ConfiguredSlamMethod):
-                extra["options"] = options
+                method = method.with_options(options)
             method.run(seq, run_dir, preset=preset, device="cpu", seed=0, max_frames=None,
                        progress=progress, **extra)
         result.runs[name] = run_dir

@@ -105,22 +105,23 @@ class MonoGsEdiMethod(ConfiguredSlamMethod):
 
     def run(self, sequence: Sequence, out: Path, *, preset: str = "paper", device: str = "cpu",
             seed: int = 0, max_frames: int | None = None, progress: bool = True,
-            overwrite: bool = False, options: dict[str, Any] | None = None) -> RunFolder:
-        """Deblur each frame with EDI as the SLAM reads it, run ``monogs``; ``options``
-        override SLAM configuration fields as for the built-in methods."""
+            overwrite: bool = False) -> RunFolder:
+        """Deblur each frame with EDI as the SLAM reads it, run ``monogs`` (with the method's
+        ``options``, as for the built-in methods)."""
         from egs_bench.fileio import write_text_atomic
         from egs_bench.runs.folder import RUN_FILE, RunFolder
-        from egs_bench.slam.runner import run_slam
+        from egs_bench.slam.runner import RunSettings, run_slam
 
-        config = self.config(preset).replace(**(options or {})).validate()
+        config = self.config(preset)
         view = EdiSequence(sequence, self.edi)
         run_file = Path(out) / RUN_FILE
         before = run_file.read_bytes() if run_file.is_file() else None
         try:
             # the view has Sequence's interface (delegation), with EDI images from rgb()
             return run_slam(cast("Sequence", view), out, method_name=self.name, config=config,
-                            preset=preset, device=device, seed=seed, max_frames=max_frames,
-                            progress=progress, overwrite=overwrite)
+                            settings=RunSettings(preset, device, seed, max_frames, progress,
+                                                 overwrite),
+                            components=self.components)
         finally:
             # only a run folder this call created (a refused --out is someone else's run)
             if run_file.is_file() and run_file.read_bytes() != before:

@@ -42,21 +42,15 @@ def run_cmd(
     """Run a SLAM method on a sequence and write its run folder."""
     from egs_bench.datasets.registry import load_sequence
     from egs_bench.errors import ConfigError
-    from egs_bench.runs.registry import get_method, supports_overwrite
+    from egs_bench.runs.registry import get_method, supports_overwrite, with_options
     from egs_bench.slam.config import parse_overrides
-    from egs_bench.slam.methods import ConfiguredSlamMethod
 
-    m = get_method(method)
-    overrides = parse_overrides(options)
-    if overrides and not isinstance(m, ConfiguredSlamMethod):
-        raise ConfigError(f"--set applies to built-in methods; {m.name!r} is a user method")
+    m = with_options(get_method(method), parse_overrides(options))
     if overwrite and not supports_overwrite(m):
         raise ConfigError(f"method {m.name!r} does not support --overwrite; choose a new --out")
     sequence = load_sequence(seq)
     out_dir = out or Path("runs") / m.name.replace(":", "_") / sequence.name
-    extra: dict = {"options": overrides} if overrides else {}
-    if overwrite:
-        extra["overwrite"] = True
+    extra: dict = {"overwrite": True} if overwrite else {}
     run = m.run(sequence, out_dir, preset=preset, device=device, seed=seed,
                 max_frames=max_frames, progress=not quiet, **extra)
     typer.echo(f"run folder: {run.path}")

@@ -289,15 +289,14 @@ def _run_method(spec: RunSpec, run_dir: Path, record: dict[str, Any]) -> None:
     """Run the method; set the record's state, reason and ``run_wall_s`` (interruptions
     propagate, with ``run_wall_s`` set)."""
     from egs_bench.datasets.sequence import Sequence
-    from egs_bench.runs.registry import get_method
+    from egs_bench.runs.registry import get_method, with_options
 
     t0 = time.perf_counter()
     try:
-        method = get_method(spec.method)
+        method = with_options(get_method(spec.method), spec.options or {})
         sequence = Sequence.open(spec.sequence)
-        extra = {"options": spec.options} if spec.options else {}
         method.run(sequence, run_dir, preset=spec.preset, device=spec.device, seed=spec.seed,
-                   max_frames=spec.max_frames, progress=False, **extra)
+                   max_frames=spec.max_frames, progress=False)
         state = run_state(run_dir)
         record["state"] = state if state in ("done", "failed", "tracking_lost") else "failed"
         if record["state"] != "done":

@@ -134,3 +134,19 @@ def supports_overwrite(method: Method) -> bool:
     except (TypeError, ValueError):
         return False
     return "overwrite" in params or any(p.kind is p.VAR_KEYWORD for p in params.values())
+
+
+def with_options(method: Method, options: dict[str, Any]) -> Method:
+    """``method`` with configuration fields overridden (``--set``, a sweep's ``set``).
+
+    Raises:
+        ConfigError: ``options`` given for a method that has no configuration fields (one
+            without ``with_options``, e.g. a user method with its own ``run``).
+    """
+    if not options:
+        return method
+    configure = getattr(method, "with_options", None)
+    if configure is None:
+        raise ConfigError(f"--set applies to methods with a SLAM configuration; {method.name!r} "
+                          "has none")
+    return configure(options)

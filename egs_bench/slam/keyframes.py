@@ -7,6 +7,8 @@ The window is ordered newest first, as in MonoGS.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from egs_bench.slam.config import KeyframeConfig
@@ -41,24 +43,44 @@ def relative_translation(pose_a_cw: np.ndarray, pose_b_cw: np.ndarray) -> float:
     return float(np.linalg.norm(rel[:3, 3]))
 
 
-def is_keyframe(frame_idx: int, last_kf_idx: int, pose_cw: np.ndarray, last_kf_pose_cw: np.ndarray,
-                vis: np.ndarray, last_kf_vis: np.ndarray, median_depth: float, window_len: int,
-                rules: KeyframeConfig, window_size: int) -> bool:
-    """MonoGS's single-thread keyframe test for the tracked frame ``frame_idx``.
+@dataclass(frozen=True)
+class KeyframeCandidate:
+    """A tracked frame and what the keyframe test compares it with.
+
+    Attributes:
+        frame_idx, last_kf_idx: the frame's and the last keyframe's indices.
+        pose_cw, last_kf_pose_cw: their world-to-camera poses [4, 4].
+        vis, last_kf_vis: their visibility sets, bool [N] over the Gaussians.
+        median_depth: median rendered depth of the frame (m).
+        window_len: keyframes in the window now.
+    """
+
+    frame_idx: int
+    last_kf_idx: int
+    pose_cw: np.ndarray
+    last_kf_pose_cw: np.ndarray
+    vis: np.ndarray
+    last_kf_vis: np.ndarray
+    median_depth: float
+    window_len: int
+
+
+def is_keyframe(c: KeyframeCandidate, rules: KeyframeConfig, window_size: int) -> bool:
+    """MonoGS's single-thread keyframe test for the tracked frame ``c.frame_idx``.
 
     A frame becomes a keyframe when enough frames have passed (``interval``) and either the
     window (of ``window_size``) is not yet full and the overlap (IoU) with the last keyframe is
     below ``overlap``, or the camera moved more than ``translation`` x median depth, or it
     moved more than ``min_translation`` x median depth while the overlap is below ``overlap``.
     """
-    if frame_idx - last_kf_idx < rules.interval:
+    if c.frame_idx - c.last_kf_idx < rules.interval:
         return False
-    iou = visibility_iou(vis, last_kf_vis)
-    if window_len < window_size:
+    iou = visibility_iou(c.vis, c.last_kf_vis)
+    if c.window_len < window_size:
         return iou < rules.overlap
-    dist = relative_translation(pose_cw, last_kf_pose_cw)
-    return bool((iou < rules.overlap and dist > rules.min_translation * median_depth)
-                or dist > rules.translation * median_depth)
+    dist = relative_translation(c.pose_cw, c.last_kf_pose_cw)
+    return bool((iou < rules.overlap and dist > rules.min_translation * c.median_depth)
+                or dist > rules.translation * c.median_depth)
 
 
 def update_window(window: list[int], new_kf: int, visibility: dict[int, np.ndarray],
@@ -98,3 +120,18 @@ def update_window(window: list[int], new_kf: int, visibility: dict[int, np.ndarr
         removed.append(best)
         win.remove(best)
     return win, removed
+
+
+class MonoGSKeyframes:
+    """The default :class:`~egs_bench.slam.components.KeyframePolicy`: MonoGS's RGB-D rules
+    (:func:`is_keyframe`, :func:`update_window`) with the run's window size."""
+
+    def __init__(self, rules: KeyframeConfig, window_size: int) -> None:
+        self.rules, self.window_size = rules, window_size
+
+    def is_keyframe(self, candidate: KeyframeCandidate) -> bool:
+        return is_keyframe(candidate, self.rules, self.window_size)
+
+    def update_window(self, window: list[int], new_kf: int, visibility: dict[int, np.ndarray],
+                      poses_cw: dict[int, np.ndarray]) -> tuple[list[int], list[int]]:
+        return update_window(window, new_kf, visibility, poses_cw, self.rules, self.window_size)

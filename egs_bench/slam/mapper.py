@@ -11,6 +11,7 @@ one copy of their gradients and the loss back per iteration.
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 import torch
@@ -18,7 +19,7 @@ import torch
 from egs_bench.geometry.lie import se3_exp, twist_gradient
 from egs_bench.interrupts import raise_if_interrupted
 from egs_bench.render import GaussianMap
-from egs_bench.slam.config import SlamConfig
+from egs_bench.slam.context import SlamContext
 from egs_bench.slam.crf import CameraResponse
 from egs_bench.slam.exposure import exposure_path
 from egs_bench.slam.frames import FrameObs, FrameState
@@ -28,10 +29,21 @@ from egs_bench.slam.render_model import (
     blur_loss,
     mapping_regulariser,
     prepare_targets,
-    render_views,
     stack_targets,
 )
 from egs_bench.slam.tracker import flat_grad, to_device
+
+
+@dataclass
+class _HostPlan:
+    """A mapping round's host-side unknowns: the keyframes whose end poses are refined, those
+    whose exposure is free, the mask of the end-pose twists that move [12 x len(refine)], and
+    the Adam over them."""
+
+    refine: list[int]
+    free_exposure: list[int]
+    slot_mask: np.ndarray
+    adam: HostAdam
 
 
 class Mapper:
@@ -42,12 +54,12 @@ class Mapper:
     clone/split densification; insertion is denser instead.
     """
 
-    def __init__(self, gmap: GaussianMap, crf: CameraResponse, cfg: SlamConfig, K: torch.Tensor,
-                 width: int, height: int, theta: tuple[float, float], eps: float,
+    def __init__(self, ctx: SlamContext, gmap: GaussianMap, crf: CameraResponse,
                  rng: np.random.Generator) -> None:
-        self.gmap, self.crf, self.cfg = gmap, crf, cfg
-        self.K, self.width, self.height = K, width, height
-        self.theta, self.eps, self.rng = theta, eps, rng
+        """``rng`` draws the random older keyframes of each iteration."""
+        self.ctx, self.gmap, self.crf, self.cfg = ctx, gmap, crf, ctx.cfg
+        self.rng = rng
+        cfg = ctx.cfg
         self.iteration = 0
         self.targets: dict[int, LossTargets] = {}
         self.crf_opt = None
@@ -70,7 +82,7 @@ class Mapper:
 
     def _targets(self, k: int, obs: FrameObs) -> LossTargets:
         if k not in self.targets:
-            self.targets[k] = prepare_targets(obs, self.cfg, self.theta, tracking=False,
+            self.targets[k] = prepare_targets(obs, self.cfg, self.ctx.theta, tracking=False,
                                               use_events=self.cfg.method.event_mapping)
         return self.targets[k]
 
@@ -109,25 +121,9 @@ class Mapper:
         cfg = self.cfg
         report_every = max(1, iterations // 50)
         opt = self._gaussian_optimizer()
-        blur = cfg.method.blur_model
-        # No pose is refined while the map is built from frame 0 alone: with one view the map
-        # absorbs any T_0 (measured: frame 0's T_0 drifted 9 cm from a 2 cm true motion on
-        # `demo`, and the constant-velocity prediction of frame 1 inherited it). Frame 0's T_0
-        # is refined later, when other keyframes constrain the map.
-        refine = [] if initial or not cfg.mapping.refine_poses else list(
-            window[: cfg.budget.pose_window])
-        # Which end poses of each refined keyframe move: (T_0, T_tau).
-        slots = {k: (blur, k != fixed_end_pose) for k in refine}
-        refine = [k for k in refine if any(slots[k])]
+        plan = self._host_plan(window, initial, fixed_end_pose)
+        refine, free_exposure = plan.refine, plan.free_exposure
         use_exposure = cfg.method.exposure_compensation and not initial
-        free_exposure = [k for k in window if k != fixed_end_pose] if use_exposure else []
-        # Host Adam over the refined keyframes' end twists (12 each; frozen slots get zero
-        # gradients) and the window's exposures (2 each).
-        pose_lr = (np.r_[[cfg.budget.lr_trans] * 3, [cfg.budget.lr_rot] * 3]
-                   * cfg.mapping.kf_pose_lr_scale)
-        adam = HostAdam(np.r_[np.tile(pose_lr, 2 * len(refine)),
-                              [cfg.tracking.lr_exposure] * (2 * len(free_exposure))])
-        slot_mask = np.repeat(np.array([s for k in refine for s in slots[k]], float), 6)
         like = self.gmap.means
         loss_val = float("nan")
         prune_due = False
@@ -150,9 +146,9 @@ class Mapper:
             if free_exposure and exp_ab is not None:
                 exp_ab.requires_grad_()
             targets = stack_targets([self._targets(k, observations[k]) for k in views])
-            res = render_views(self.gmap, viewmats, self.K, self.width, self.height, cfg)
+            res = self.ctx.render(self.gmap, viewmats)
             total = blur_loss(res, targets, self.crf, exp_ab, cfg, tracking=False,
-                              eps=self.eps)
+                              eps=self.ctx.eps)
             if not initial:
                 total = total + mapping_regulariser(self.gmap, cfg)
             opt.zero_grad(set_to_none=True)
@@ -173,8 +169,7 @@ class Mapper:
             if self.crf_opt is not None and not initial:
                 self.crf_opt.step()
             if refine or free_exposure:
-                self._host_step(adam, states, views, paths, refine, slot_mask, free_exposure,
-                                host[:-1], m)
+                self._host_step(plan, states, views, paths, host[:-1], m)
             self.iteration += 1
             every = cfg.budget.prune_every
             if not initial and self.iteration % every == cfg.budget.prune_offset % every:
@@ -187,12 +182,37 @@ class Mapper:
                 self._prune(cfg.mapping.prune_opacity)
         return loss_val
 
-    def _host_step(self, adam: HostAdam, states: dict[int, FrameState], views: list[int],
-                   paths: dict[int, tuple[np.ndarray, np.ndarray]], refine: list[int],
-                   slot_mask: np.ndarray, free_exposure: list[int], host_grads: np.ndarray,
+    def _host_plan(self, window: list[int], initial: bool, fixed_end_pose: int | None
+                   ) -> _HostPlan:
+        """What a mapping round optimises on the host besides the Gaussians."""
+        cfg = self.cfg
+        blur = cfg.method.blur_model
+        # No pose is refined while the map is built from frame 0 alone: with one view the map
+        # absorbs any T_0 (measured: frame 0's T_0 drifted 9 cm from a 2 cm true motion on
+        # `demo`, and the constant-velocity prediction of frame 1 inherited it). Frame 0's T_0
+        # is refined later, when other keyframes constrain the map.
+        refine = [] if initial or not cfg.mapping.refine_poses else list(
+            window[: cfg.budget.pose_window])
+        # Which end poses of each refined keyframe move: (T_0, T_tau).
+        slots = {k: (blur, k != fixed_end_pose) for k in refine}
+        refine = [k for k in refine if any(slots[k])]
+        use_exposure = cfg.method.exposure_compensation and not initial
+        free_exposure = [k for k in window if k != fixed_end_pose] if use_exposure else []
+        # Host Adam over the refined keyframes' end twists (12 each; frozen slots get zero
+        # gradients) and the window's exposures (2 each).
+        pose_lr = (np.r_[[cfg.budget.lr_trans] * 3, [cfg.budget.lr_rot] * 3]
+                   * cfg.mapping.kf_pose_lr_scale)
+        adam = HostAdam(np.r_[np.tile(pose_lr, 2 * len(refine)),
+                              [cfg.tracking.lr_exposure] * (2 * len(free_exposure))])
+        slot_mask = np.repeat(np.array([s for k in refine for s in slots[k]], float), 6)
+        return _HostPlan(refine, free_exposure, slot_mask, adam)
+
+    def _host_step(self, plan: _HostPlan, states: dict[int, FrameState], views: list[int],
+                   paths: dict[int, tuple[np.ndarray, np.ndarray]], host_grads: np.ndarray,
                    m: int) -> None:
         """One host Adam step on the refined keyframes' end poses and the window's exposures,
         from the packed gradients (sub-pose gradients of every view, then ``(a, b)`` per view)."""
+        refine, free_exposure, adam = plan.refine, plan.free_exposure, plan.adam
         n_vm = 16 * m * len(views) if refine else 0
         g_pose = []
         if refine:
@@ -210,7 +230,7 @@ class Mapper:
             g_exp = [e[views.index(k)] if k in views else np.zeros(2) for k in free_exposure]
         delta = adam.step(np.concatenate([*g_pose, *g_exp]) if (g_pose or g_exp) else
                           np.zeros(0))
-        twists = (delta[:12 * len(refine)] * slot_mask).reshape(len(refine), 2, 6)
+        twists = (delta[:12 * len(refine)] * plan.slot_mask).reshape(len(refine), 2, 6)
         for j, k in enumerate(refine):
             st = states[k]
             st.pose0_cw = se3_exp(twists[j, 0]) @ st.pose0_cw
@@ -239,9 +259,9 @@ class Mapper:
             views = exposure_path(st.pose0_cw, st.pose1_cw, observations[k].fractions)[0]
             exp_ab = to_device(np.array([st.exp_a, st.exp_b]), like).view(1, 2) \
                 if cfg.method.exposure_compensation else None
-            res = render_views(self.gmap, views, self.K, self.width, self.height, cfg)
+            res = self.ctx.render(self.gmap, views)
             total = (blur_loss(res, self._targets(k, observations[k]), self.crf, exp_ab, cfg,
-                               tracking=False, eps=self.eps)
+                               tracking=False, eps=self.ctx.eps)
                      + mapping_regulariser(self.gmap, cfg))
             opt.zero_grad(set_to_none=True)
             total.backward()

@@ -6,51 +6,69 @@ Each is a configuration of the one SLAM system (:class:`ConfiguredSlamMethod`), 
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Self
 
 from egs_bench.runs.registry import register_builtin
 
 if TYPE_CHECKING:
     from egs_bench.datasets.sequence import Sequence
     from egs_bench.runs.folder import RunFolder
+    from egs_bench.slam.components import SlamComponents
 
 
 @dataclass
 class ConfiguredSlamMethod:
-    """A built-in method: the SLAM system with ``overrides`` applied on top of a preset."""
+    """A built-in method: the SLAM system with ``overrides`` applied on top of a preset.
+
+    Attributes:
+        overrides: the method's own configuration fields (what makes it this method).
+        options: further fields set for one study (``--set``, a sweep's ``set``), applied
+            after ``overrides``; see :meth:`with_options`.
+        components: the tracker, mapper and keyframe policy (None: the built-in ones); a
+            method with its own components is how a researcher plugs in a new part
+            (:mod:`egs_bench.slam.components`).
+    """
 
     name: str
     description: str
     overrides: dict[str, Any] = field(default_factory=dict)
+    options: dict[str, Any] = field(default_factory=dict)
+    components: SlamComponents | None = None
 
     def config(self, preset: str = "paper", meta: dict[str, Any] | None = None):  # -> SlamConfig
         """The preset, then what the sequence's ``meta`` implies (real data: the paper's
-        real-data values), then this method's own overrides."""
+        real-data values), then this method's own overrides, then its options."""
         from egs_bench.recordings.params import sequence_slam_defaults
         from egs_bench.slam.config import preset as make_preset
 
         base = make_preset(preset).replace(**sequence_slam_defaults(meta or {}))
-        return base.replace(**self.overrides).validate()
+        return base.replace(**self.overrides).validate().replace(**self.options).validate()
+
+    def with_options(self, options: dict[str, Any]) -> Self:
+        """This method with single configuration fields overridden on top of the preset and
+        its own settings (sensitivity studies; stored in the run folder's resolved
+        configuration)."""
+        return dataclasses.replace(self, options={**self.options, **options})
 
     def run(self, sequence: Sequence, out: Path, *, preset: str = "auto", device: str = "auto",
             seed: int = 0, max_frames: int | None = None, progress: bool = True,
-            overwrite: bool = False, options: dict[str, Any] | None = None) -> RunFolder:
-        """Run on ``sequence``; ``options`` override single configuration fields on top of the
-        preset and the method's own settings (sensitivity studies; stored in the run folder's
-        resolved configuration); ``overwrite`` replaces an existing run folder at ``out``.
+            overwrite: bool = False) -> RunFolder:
+        """Run on ``sequence``; ``overwrite`` replaces an existing run folder at ``out``.
         ``device="auto"`` picks CUDA when present; ``preset="auto"`` the paper budget on CUDA
         and the cpu budget on a CPU."""
         from egs_bench.slam.config import resolve_device, resolve_preset
-        from egs_bench.slam.runner import run_slam
+        from egs_bench.slam.runner import RunSettings, run_slam
 
         device = resolve_device(device)
         preset = resolve_preset(preset, device)
-        config = self.config(preset, sequence.meta).replace(**(options or {})).validate()
-        return run_slam(sequence, out, method_name=self.name, config=config,
-                        preset=preset, device=device, seed=seed, max_frames=max_frames,
-                        progress=progress, overwrite=overwrite)
+        return run_slam(sequence, out, method_name=self.name,
+                        config=self.config(preset, sequence.meta),
+                        settings=RunSettings(preset, device, seed, max_frames, progress,
+                                             overwrite),
+                        components=self.components)
 
 
 _MONOGS = {

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -16,6 +17,7 @@ from egs_bench.fileio import write_text_atomic
 from egs_bench.geometry import invert_pose
 from egs_bench.runs.folder import RunFolder
 from egs_bench.slam.appearance import APPEARANCE_FILE, MAP_FILE, Appearance, ldr8, write_appearance
+from egs_bench.slam.components import SlamComponents
 from egs_bench.slam.config import SlamConfig, resolve_device
 from egs_bench.slam.render_model import render_views
 from egs_bench.slam.system import FrameReport, SlamResult, SlamSystem
@@ -41,10 +43,30 @@ def check_inputs(seq: Sequence, config: SlamConfig, max_frames: int | None) -> i
     return len(seq) if max_frames is None else min(len(seq), int(max_frames))
 
 
+@dataclass(frozen=True)
+class RunSettings:
+    """How one run is carried out, besides the configuration.
+
+    Attributes:
+        preset: the budget's name, recorded in the run folder.
+        device: torch device (``auto``: CUDA when present).
+        seed: seeds every random choice.
+        max_frames: process only the first frames (None: all).
+        progress: show a progress bar.
+        overwrite: replace an existing run folder at the output path.
+    """
+
+    preset: str = "paper"
+    device: str = "cpu"
+    seed: int = 0
+    max_frames: int | None = None
+    progress: bool = True
+    overwrite: bool = False
+
+
 def run_slam(seq: Sequence, out: str | Path, *, method_name: str, config: SlamConfig,
-             preset: str = "paper", device: str = "cpu", seed: int = 0,
-             max_frames: int | None = None, progress: bool = True,
-             overwrite: bool = False) -> RunFolder:
+             settings: RunSettings = RunSettings(),
+             components: SlamComponents | None = None) -> RunFolder:
     """Run the SLAM system configured by ``config`` on ``seq``; write a complete run folder.
 
     Writes the estimated ``T_tau`` of every processed frame (TUM, exposure-end stamps), the
@@ -55,23 +77,28 @@ def run_slam(seq: Sequence, out: str | Path, *, method_name: str, config: SlamCo
     is marked failed (interrupted on Ctrl-C or SIGTERM) with the reason.
 
     Args:
-        overwrite: replace an existing run folder at ``out`` (see :meth:`RunFolder.create`).
+        settings: device, seed, frames, progress; ``settings.overwrite`` replaces an existing
+            run folder at ``out`` (see :meth:`RunFolder.create`).
+        components: the SLAM system's tracker, mapper and keyframe policy (None: built-in).
 
     Raises:
         ConfigError, InputError: see :func:`check_inputs`; OutputError: ``out`` may not be
         written (see :func:`egs_bench.outputs.prepare_output`).
     """
-    device = resolve_device(device)
-    n = check_inputs(seq, config, max_frames)
+    device = resolve_device(settings.device)
+    preset, seed, progress = settings.preset, settings.seed, settings.progress
+    n = check_inputs(seq, config, settings.max_frames)
     resolved = {"method": method_name, "preset": preset, "seed": seed, "device": device,
                 "frames": n, "slam": config.to_dict()}
     run = RunFolder.create(out, method=method_name, sequence_name=seq.name,
-                           sequence_path=seq.path, config=resolved, overwrite=overwrite)
+                           sequence_path=seq.path, config=resolved,
+                           overwrite=settings.overwrite)
     with run.failure_guard():
         if device == "cpu":
             torch.use_deterministic_algorithms(True, warn_only=True)
         run.log(f"{method_name} on {seq.name}: {n} frames, preset {preset}, seed {seed}")
-        system = SlamSystem(seq, config, device=device, seed=seed, log=run.log)
+        system = SlamSystem(seq, config, device=device, seed=seed, log=run.log,
+                            components=components)
         bar = tqdm(total=n, desc=f"{method_name} {seq.name}", unit="frame", disable=not progress)
         t_start = time.perf_counter()
         run.set_progress(0, n)

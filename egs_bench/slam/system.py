@@ -14,13 +14,13 @@ from egs_bench.errors import InputError
 from egs_bench.geometry import invert_pose
 from egs_bench.interrupts import raise_if_interrupted
 from egs_bench.render import GaussianMap
+from egs_bench.slam.components import SlamComponents
 from egs_bench.slam.config import SlamConfig
+from egs_bench.slam.context import SlamContext
 from egs_bench.slam.crf import make_crf
-from egs_bench.slam.frames import FrameObs, FrameState, internal_intrinsics, load_frame
-from egs_bench.slam.keyframes import is_keyframe, update_window
-from egs_bench.slam.mapper import Mapper
-from egs_bench.slam.render_model import render_views
-from egs_bench.slam.tracker import last_motion, predict_initial, track_frame
+from egs_bench.slam.frames import FrameObs, FrameState, load_frame
+from egs_bench.slam.keyframes import KeyframeCandidate
+from egs_bench.slam.tracker import TrackRequest, TrackResult, last_motion, predict_initial
 
 
 @dataclass
@@ -43,6 +43,21 @@ class SlamResult:
     divergences: list[str] = field(default_factory=list)
 
 
+@dataclass
+class _Keyframes:
+    """The loop's keyframe bookkeeping: keyframe ids in order, the window (newest first), and
+    per keyframe its state, observations and visibility set (bool [N] over the Gaussians)."""
+
+    ids: list[int]
+    window: list[int]
+    states: dict[int, FrameState]
+    observations: dict[int, FrameObs]
+    visibility: dict[int, np.ndarray]
+
+    def poses_cw(self) -> dict[int, np.ndarray]:
+        return {k: s.pose1_cw for k, s in self.states.items()}
+
+
 class SlamSystem:
     """EGS-SLAM (or a configured variant) on one sequence.
 
@@ -52,51 +67,55 @@ class SlamSystem:
         device: torch device for maps and images.
         seed: seeds every random choice (insertion subsampling, random mapping views).
         log: callback for human-readable log lines.
+        components: the tracker, mapper and keyframe policy (default: the built-in ones,
+            configured by ``cfg``); see :mod:`egs_bench.slam.components`.
     """
 
     def __init__(self, seq, cfg: SlamConfig, device: str = "cpu", seed: int = 0,
-                 log: Callable[[str], None] | None = None) -> None:
+                 log: Callable[[str], None] | None = None,
+                 components: SlamComponents | None = None) -> None:
         self.seq, self.cfg = seq, cfg
-        self.device = torch.device(device)
+        self.ctx = SlamContext.build(seq, cfg, device)
+        self.device = self.ctx.device
         self.log = log or (lambda _m: None)
-        self.cam = internal_intrinsics(seq.intrinsics, cfg.budget.resolution_scale)
-        self.K = torch.tensor(self.cam.K, dtype=torch.float32, device=self.device)
         self.gen = torch.Generator().manual_seed(seed)  # insertion subsampling
         self.rng = np.random.default_rng(seed)  # random mapping views
         torch.manual_seed(seed)
         self.gmap = GaussianMap.empty(torch.float32, self.device)
         m = cfg.method
         self.crf = make_crf(m.crf, m.crf_nodes, m.crf_alpha, m.crf_init, self.device)
-        if cfg.method.theta is not None:
-            self.theta = (float(cfg.method.theta), float(cfg.method.theta))
-        else:
-            self.theta = (float(seq.pos_threshold), float(seq.neg_threshold))
-        self.eps = float(seq.eps)
         self.states: list[FrameState] = []  # filled by run()
         self.want_events = cfg.method.event_tracking or cfg.method.event_mapping
         if self.want_events and not getattr(seq, "has_events", True):
             self.log("sequence has no events: event losses see empty event maps")
-        self.mapper = Mapper(self.gmap, self.crf, cfg, self.K, self.cam.width, self.cam.height,
-                             self.theta, self.eps, self.rng)
+        parts = components or SlamComponents()
+        self.tracker = parts.tracker(self.ctx)
+        self.mapper = parts.mapper(self.ctx, self.gmap, self.crf, self.rng)
+        self.keyframe_policy = parts.keyframes(self.ctx)
 
     # -------------------------------------------------------------------------------- helpers
-    def _obs(self, i: int) -> FrameObs:
-        return load_frame(self.seq, i, self.cam, self.cfg, self.want_events, self.device)
+    def obs(self, i: int) -> FrameObs:
+        """Frame ``i``'s observations at the internal resolution."""
+        return load_frame(self.seq, i, self.ctx.cam, self.cfg, self.want_events, self.device)
 
-    def _insert(self, obs: FrameObs, state: FrameState, downsample: int, kf_id: int) -> int:
+    def insert(self, obs: FrameObs, state: FrameState, downsample: int, kf_id: int) -> int:
+        """Add Gaussians back-projected from ``obs``'s depth at ``state``'s ``T_tau``; returns
+        how many."""
         with torch.no_grad():
             lin = self.crf.inverse(obs.rgb.to(torch.float32)).clamp_min(0.0)
         depth = (obs.depth * obs.rgb_mask).cpu().numpy()  # MonoGS zeroes near-black pixels
         pose_wc = invert_pose(state.pose1_cw)
-        return self.gmap.add_from_depth(lin.cpu().numpy(), depth, self.cam, pose_wc,
+        return self.gmap.add_from_depth(lin.cpu().numpy(), depth, self.ctx.cam, pose_wc,
                                         downsample=downsample,
                                         point_size=self.cfg.mapping.point_size,
                                         keyframe_id=kf_id, generator=self.gen)
 
     @torch.no_grad()
     def _end_render(self, state: FrameState):
-        return render_views(self.gmap, state.pose1_cw[None], self.K, self.cam.width,
-                            self.cam.height, self.cfg, visibility=True)
+        return self.ctx.render(self.gmap, state.pose1_cw[None], visibility=True)
+
+    def _visibility(self, state: FrameState) -> np.ndarray:
+        return self._end_render(state).visibility[0].cpu().numpy()
 
     @staticmethod
     def _median_depth(res) -> float:
@@ -120,6 +139,92 @@ class SlamSystem:
             return f"loss {loss:.4g} > {factor} x median {med:.4g}"
         return None
 
+    # -------------------------------------------------------------------------------- phases
+    def _initialise(self, report: Callable[[int, int], None] | None) -> _Keyframes:
+        """Frame 0 at its ground-truth pose (``T_0 = T_tau``): insert it and build the map."""
+        gt0 = invert_pose(np.asarray(self.seq.poses[0], dtype=np.float64))
+        state0 = FrameState(0, gt0.copy(), gt0.copy())
+        self.states.append(state0)
+        obs0 = self.obs(0)
+        kfs = _Keyframes([0], [0], {0: state0}, {0: obs0}, {})
+        if self.insert(obs0, state0, self.cfg.budget.pcd_downsample_init, 0) == 0:
+            raise InputError(self.seq.path, "frame 0 has no valid depth: cannot initialise the map")
+        self.mapper.optimise(kfs.states, kfs.observations, [0], [0], self.cfg.budget.init_iters,
+                             initial=True, report=report)
+        self.log(f"initialised map on frame 0: {len(self.gmap)} Gaussians")
+        kfs.visibility[0] = self._visibility(state0)
+        return kfs
+
+    def _request(self, i: int, obs: FrameObs) -> TrackRequest:
+        """Frame ``i``'s tracking request: the motion model's prediction, the budget, and the
+        exposure-start anchor (``continuous_exposure`` or a short exposure)."""
+        cfg, ctx, states = self.cfg, self.ctx, self.states
+        t0, t1 = ctx.exposure(i)
+        prev_end, prev_start = ctx.exposure(i - 1)[1], ctx.exposure(i - 1)[0]
+        prev_prev_end = ctx.exposure(i - 2)[1] if i >= 2 else None
+        init = predict_initial(i, states, cfg.tracking.motion_model, t0, t1, prev_end,
+                               prev_prev_end, prev_start)
+        # Without a velocity the start is off by the whole motion since the previous frame.
+        iters = None
+        if (cfg.budget.tracking_iters_no_prior is not None
+                and cfg.tracking.motion_model == "constant-velocity"
+                and last_motion(states, cfg.tracking.motion_model, prev_end, prev_prev_end,
+                                prev_start) is None):
+            iters = cfg.budget.tracking_iters_no_prior
+        anchor = None
+        since_prev = max(t1 - prev_end, 1)
+        short = t1 - t0 < cfg.tracking.short_exposure_ratio * since_prev
+        if cfg.tracking.continuous_exposure or short:
+            anchor = (states[-1].pose1_cw, (t0 - prev_end) / since_prev)
+        return TrackRequest(obs, init, anchor, iters)
+
+    def _track(self, i: int, obs: FrameObs, recent_losses: list[float],
+               divergences: list[str]) -> tuple[TrackResult, bool]:
+        """Track frame ``i``; on divergence re-track once from the previous pose with half the
+        learning rate, and keep the previous pose if that diverges too."""
+        request = self._request(i, obs)
+        prev = self.states[-1]
+        tr = self.tracker.track(self.gmap, self.crf, request)
+        why = self._diverged(prev, tr.state, tr.loss, recent_losses)
+        if why is None:
+            return tr, False
+        self.log(f"frame {i}: tracking diverged ({why}); re-tracking from the previous "
+                 "pose with half the learning rate")
+        divergences.append(f"frame {i}: {why}")
+        t0, t1 = self.ctx.exposure(i)
+        init = predict_initial(i, self.states, "constant-position", t0, t1, None, None)
+        tr = self.tracker.track(self.gmap, self.crf, TrackRequest(
+            obs, init, request.start_anchor, lr_scale=0.5))
+        if self._diverged(prev, tr.state, tr.loss, recent_losses) is not None:
+            self.log(f"frame {i}: re-tracking diverged too; keeping the previous pose")
+            tr.state = FrameState(i, prev.pose1_cw.copy(), prev.pose1_cw.copy(), prev.exp_a,
+                                  prev.exp_b)
+        return tr, True
+
+    def _keyframe_step(self, i: int, obs: FrameObs, state: FrameState, kfs: _Keyframes,
+                       report: Callable[[int, int], None] | None) -> bool:
+        """Make frame ``i`` a keyframe if the policy wants it: insert Gaussians and run a
+        mapping round on the updated window. Returns whether it became one."""
+        res = self._end_render(state)
+        vis = res.visibility[0].cpu().numpy()
+        last = kfs.ids[-1]
+        if not self.keyframe_policy.is_keyframe(KeyframeCandidate(
+                i, last, state.pose1_cw, kfs.states[last].pose1_cw, vis, kfs.visibility[last],
+                self._median_depth(res), len(kfs.window))):
+            return False
+        kfs.ids.append(i)
+        kfs.states[i], kfs.observations[i], kfs.visibility[i] = state, obs, vis
+        kfs.window, removed = self.keyframe_policy.update_window(kfs.window, i, kfs.visibility,
+                                                                 kfs.poses_cw())
+        self.insert(obs, state, self.cfg.budget.pcd_downsample, i)
+        self.mapper.optimise(kfs.states, kfs.observations, kfs.window, kfs.ids,
+                             self.cfg.budget.mapping_iters, report=report)
+        for k in kfs.window:  # MonoGS recomputes window visibility after mapping
+            kfs.visibility[k] = self._visibility(kfs.states[k])
+        if removed:
+            self.log(f"frame {i}: keyframe; window -{removed}")
+        return True
+
     # -------------------------------------------------------------------------------- main loop
     def run(self, n_frames: int, on_frame: Callable[[FrameReport], None] | None = None,
             on_phase: Callable[[str, int, int], None] | None = None) -> SlamResult:
@@ -136,104 +241,38 @@ class SlamSystem:
 
         if n_frames < 1:
             raise InputError(self.seq.path, "no frames to process")
-        cfg = self.cfg
         t_wall = time.perf_counter()
-        gt0 = invert_pose(np.asarray(self.seq.poses[0], dtype=np.float64))
-        states = [FrameState(0, gt0.copy(), gt0.copy())]
-        self.states = states  # grows frame by frame: what an interrupted run got done
-        obs0 = self._obs(0)
-        observations: dict[int, FrameObs] = {0: obs0}
-        kf_states: dict[int, FrameState] = {0: states[0]}
-        n_added = self._insert(obs0, states[0], cfg.budget.pcd_downsample_init, 0)
-        if n_added == 0:
-            raise InputError(self.seq.path, "frame 0 has no valid depth: cannot initialise the map")
-        self.mapper.optimise(kf_states, observations, [0], [0], cfg.budget.init_iters, initial=True,
-                             report=phase("map init"))
-        self.log(f"initialised map on frame 0: {len(self.gmap)} Gaussians")
-        keyframes, window = [0], [0]
-        visibility = {0: self._end_render(states[0]).visibility[0].cpu().numpy()}
-        result = SlamResult(states, keyframes, self.gmap, self.crf)
-        rep = FrameReport(0, float("nan"), cfg.budget.init_iters, True, False,
-                          time.perf_counter() - t_wall)
-        result.reports.append(rep)
+        self.states = []  # grows frame by frame: what an interrupted run got done
+        kfs = self._initialise(phase("map init"))
+        result = SlamResult(self.states, kfs.ids, self.gmap, self.crf)
+        reports = result.reports
+        reports.append(FrameReport(0, float("nan"), self.cfg.budget.init_iters, True, False,
+                                   time.perf_counter() - t_wall))
         if on_frame:
-            on_frame(rep)
+            on_frame(reports[-1])
         recent_losses: list[float] = []
-        starts = [int(self.seq.exposure(i)[0]) for i in range(n_frames)]
-        ends = [int(self.seq.exposure(i)[1]) for i in range(n_frames)]
         for i in range(1, n_frames):
             raise_if_interrupted()  # one whose exception was swallowed: stop within a frame
             t_frame = time.perf_counter()
-            obs = self._obs(i)
-            t0, t1 = (int(v) for v in self.seq.exposure(i))
-            prev_prev_end = ends[i - 2] if i >= 2 else None
-            init = predict_initial(i, states, cfg.tracking.motion_model, t0, t1, ends[i - 1],
-                                   prev_prev_end, starts[i - 1])
-            # Without a velocity the start is off by the whole motion since the previous frame.
-            iters = None
-            if (cfg.budget.tracking_iters_no_prior is not None
-                    and cfg.tracking.motion_model == "constant-velocity"
-                    and last_motion(states, cfg.tracking.motion_model, ends[i - 1],
-                                    prev_prev_end, starts[i - 1]) is None):
-                iters = cfg.budget.tracking_iters_no_prior
-            anchor = None
-            since_prev = max(t1 - ends[i - 1], 1)
-            short = t1 - t0 < cfg.tracking.short_exposure_ratio * since_prev
-            if cfg.tracking.continuous_exposure or short:
-                anchor = (states[-1].pose1_cw, (t0 - ends[i - 1]) / since_prev)
-            tr = track_frame(self.gmap, self.crf, obs, init, self.K, self.cam.width,
-                             self.cam.height, cfg, self.theta, self.eps, start_anchor=anchor,
-                             iterations=iters)
-            why = self._diverged(states[-1], tr.state, tr.loss, recent_losses)
-            diverged = why is not None
-            if diverged:
-                self.log(f"frame {i}: tracking diverged ({why}); re-tracking from the previous "
-                         "pose with half the learning rate")
-                result.divergences.append(f"frame {i}: {why}")
-                init = predict_initial(i, states, "constant-position", t0, t1, None, None)
-                tr = track_frame(self.gmap, self.crf, obs, init, self.K, self.cam.width,
-                                 self.cam.height, cfg, self.theta, self.eps, lr_scale=0.5,
-                                 start_anchor=anchor)
-                if self._diverged(states[-1], tr.state, tr.loss, recent_losses) is not None:
-                    self.log(f"frame {i}: re-tracking diverged too; keeping the previous pose")
-                    tr.state = FrameState(i, states[-1].pose1_cw.copy(),
-                                          states[-1].pose1_cw.copy(), states[-1].exp_a,
-                                          states[-1].exp_b)
+            obs = self.obs(i)
+            tr, diverged = self._track(i, obs, recent_losses, result.divergences)
             if math.isfinite(tr.loss):
-                recent_losses = (recent_losses + [tr.loss])[-20:]
-            states.append(tr.state)
-            res = self._end_render(tr.state)
-            vis = res.visibility[0].cpu().numpy()
-            last = keyframes[-1]
-            is_kf = (not diverged) and is_keyframe(
-                i, last, tr.state.pose1_cw, kf_states[last].pose1_cw,
-                vis, visibility[last], self._median_depth(res), len(window), cfg.keyframes,
-                cfg.budget.window_size)
-            if is_kf:
-                keyframes.append(i)
-                kf_states[i] = tr.state
-                observations[i] = obs
-                visibility[i] = vis
-                window, removed = update_window(window, i, visibility, {
-                    k: kf_states[k].pose1_cw for k in kf_states}, cfg.keyframes,
-                    cfg.budget.window_size)
-                self._insert(obs, tr.state, cfg.budget.pcd_downsample, i)
-                self.mapper.optimise(kf_states, observations, window, keyframes,
-                                     cfg.budget.mapping_iters, report=phase("mapping"))
-                for k in window:  # MonoGS recomputes window visibility after mapping
-                    visibility[k] = self._end_render(kf_states[k]).visibility[0].cpu().numpy()
-                if removed:
-                    self.log(f"frame {i}: keyframe; window -{removed}")
-            rep = FrameReport(i, tr.loss, tr.iterations, is_kf, diverged,
-                              time.perf_counter() - t_frame)
-            result.reports.append(rep)
+                recent_losses[:] = (recent_losses + [tr.loss])[-20:]
+            self.states.append(tr.state)
+            is_kf = not diverged and self._keyframe_step(i, obs, tr.state, kfs, phase("mapping"))
+            reports.append(FrameReport(i, tr.loss, tr.iterations, is_kf, diverged,
+                                       time.perf_counter() - t_frame))
             if on_frame:
-                on_frame(rep)
-        if cfg.mapping.refine_iters > 0:
-            t_ref = time.perf_counter()
-            loss = self.mapper.refine(kf_states, observations, keyframes, cfg.mapping.refine_iters)
-            self.log(f"refined the map: {cfg.mapping.refine_iters} iterations over "
-                     f"{len(keyframes)} keyframes in {time.perf_counter() - t_ref:.1f} s "
-                     f"(loss {loss:.4g})")
-        result.keyframes = keyframes
+                on_frame(reports[-1])
+        self._final_refinement(kfs)
+        result.keyframes = kfs.ids
         return result
+
+    def _final_refinement(self, kfs: _Keyframes) -> None:
+        iters = self.cfg.mapping.refine_iters
+        if iters <= 0:
+            return
+        t_ref = time.perf_counter()
+        loss = self.mapper.refine(kfs.states, kfs.observations, kfs.ids, iters)
+        self.log(f"refined the map: {iters} iterations over {len(kfs.ids)} keyframes in "
+                 f"{time.perf_counter() - t_ref:.1f} s (loss {loss:.4g})")

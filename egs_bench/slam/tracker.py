@@ -25,12 +25,12 @@ import torch
 from egs_bench.geometry import invert_pose
 from egs_bench.geometry.lie import se3_exp, so3_log, twist_gradient
 from egs_bench.render import GaussianMap
-from egs_bench.slam.config import SlamConfig
+from egs_bench.slam.context import SlamContext
 from egs_bench.slam.crf import CameraResponse
 from egs_bench.slam.exposure import exposure_path
 from egs_bench.slam.frames import FrameObs, FrameState
 from egs_bench.slam.host_adam import HostAdam
-from egs_bench.slam.render_model import blur_loss, prepare_targets, render_views
+from egs_bench.slam.render_model import blur_loss, prepare_targets
 
 
 @dataclass
@@ -63,24 +63,35 @@ def anchored_start(anchor: tuple[np.ndarray, float], pose1_cw: np.ndarray
     return views[0], jac[0, :, 6:]
 
 
-def track_frame(gmap: GaussianMap, crf: CameraResponse, obs: FrameObs, init: FrameState,
-                K: torch.Tensor, width: int, height: int, cfg: SlamConfig,
-                theta: tuple[float, float], eps: float, lr_scale: float = 1.0,
-                start_anchor: tuple[np.ndarray, float] | None = None,
-                iterations: int | None = None) -> TrackResult:
-    """Estimate ``T_0, T_tau`` (and exposure a, b) of one frame against the fixed map.
+@dataclass
+class TrackRequest:
+    """One frame to track.
 
-    Args:
+    Attributes:
+        obs: the frame's observations.
         init: initial estimate (its poses are not modified).
-        K: intrinsics [3, 3] at the internal resolution.
-        lr_scale: multiplies the pose learning rates (used when re-tracking after divergence).
         start_anchor: ``(T_tau of the previous frame [4, 4], f0)``: ``T_0`` is then not free
             but tied to the motion since the previous frame, ``T_0 = T(f0)`` on the path from
             the previous ``T_tau`` to this ``T_tau`` (constant velocity across the gap between
             exposures), so only ``T_tau`` is estimated (``continuous_exposure``, short exposures).
         iterations: the iteration budget (the learning rate decays over it); None =
             ``budget.tracking_iters``.
+        lr_scale: multiplies the pose learning rates (used when re-tracking after divergence).
     """
+
+    obs: FrameObs
+    init: FrameState
+    start_anchor: tuple[np.ndarray, float] | None = None
+    iterations: int | None = None
+    lr_scale: float = 1.0
+
+
+def track_frame(ctx: SlamContext, gmap: GaussianMap, crf: CameraResponse,
+                request: TrackRequest) -> TrackResult:
+    """Estimate ``T_0, T_tau`` (and exposure a, b) of one frame against the fixed map (see
+    :class:`TrackRequest`)."""
+    cfg, obs, init, iterations = ctx.cfg, request.obs, request.init, request.iterations
+    start_anchor, lr_scale = request.start_anchor, request.lr_scale
     n_iters = cfg.budget.tracking_iters if iterations is None else iterations
     fractions = obs.fractions
     blur = len(fractions) > 1
@@ -96,7 +107,8 @@ def track_frame(gmap: GaussianMap, crf: CameraResponse, obs: FrameObs, init: Fra
     # steps follow fast motion, small last steps stop Adam's oscillation around the optimum.
     decay = cfg.budget.tracking_lr_final ** (1.0 / max(n_iters - 1, 1))
     adam = HostAdam(lr, decay)
-    targets = prepare_targets(obs, cfg, theta, tracking=True, use_events=cfg.method.event_tracking)
+    targets = prepare_targets(obs, cfg, ctx.theta, tracking=True,
+                              use_events=cfg.method.event_tracking)
     curve = crf.frozen()
     scene = gmap.frozen()  # the map is fixed while tracking: activate it once
     like = targets.rgb
@@ -117,8 +129,8 @@ def track_frame(gmap: GaussianMap, crf: CameraResponse, obs: FrameObs, init: Fra
         packed = to_device(np.r_[views.ravel(), exposure] if use_exposure else views.ravel(), like)
         viewmats = packed[:16 * m].view(m, 4, 4).requires_grad_()
         exp_ab = packed[16 * m:].view(1, 2).requires_grad_() if use_exposure else None
-        res = render_views(scene, viewmats, K, width, height, cfg)
-        total = blur_loss(res, targets, curve, exp_ab, cfg, tracking=True, eps=eps)
+        res = ctx.render(scene, viewmats)
+        total = blur_loss(res, targets, curve, exp_ab, cfg, tracking=True, eps=ctx.eps)
         total.backward()
         grads = [flat_grad(viewmats)] + ([flat_grad(exp_ab)] if exp_ab is not None else [])
         host = torch.cat([*grads, total.detach().reshape(1)]).cpu().numpy().astype(np.float64)
@@ -143,6 +155,17 @@ def track_frame(gmap: GaussianMap, crf: CameraResponse, obs: FrameObs, init: Fra
         pose0 = pose1.copy()
     state = FrameState(init.index, pose0, pose1, float(exposure[0]), float(exposure[1]))
     return TrackResult(state, loss_val, it, converged)
+
+
+class GradientTracker:
+    """The default :class:`~egs_bench.slam.components.Tracker`: :func:`track_frame`."""
+
+    def __init__(self, ctx: SlamContext) -> None:
+        self.ctx = ctx
+
+    def track(self, gmap: GaussianMap, crf: CameraResponse, request: TrackRequest
+              ) -> TrackResult:
+        return track_frame(self.ctx, gmap, crf, request)
 
 
 def last_motion(history: list[FrameState], motion_model: str, prev_end_us: int | None,

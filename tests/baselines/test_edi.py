@@ -238,8 +238,8 @@ def test_monogs_edi_is_a_registered_method_writing_a_normal_run(tiny_room: Path,
     assert method.overrides == BUILTIN["monogs"].overrides
     fast = dict(resolution_scale=1.0, init_iters=10, tracking_iters=10, mapping_iters=2,
                 kf_interval=2, pcd_downsample_init=2, pcd_downsample=4)
-    run = method.run(Sequence.open(tiny_room), tmp_path / "run", preset="cpu",
-                     progress=False, options=fast)
+    run = method.with_options(fast).run(Sequence.open(tiny_room), tmp_path / "run",
+                                        preset="cpu", progress=False)
     run = RunFolder.open(run.path)
     assert run.method == "monogs-edi" and run.read_status().state == "done"
     assert run.sequence_path == tiny_room.resolve()

@@ -168,27 +168,42 @@ def test_handlers_are_restored_after_the_block() -> None:
     assert signal.getsignal(signal.SIGTERM) is before
 
 
+def _register_monogs_with(monkeypatch, name: str, components) -> str:
+    """Register ``monogs`` with its SLAM ``components`` replaced, as ``name`` (for this test);
+    the CLI runs it like any method."""
+    import dataclasses
+
+    from egs_bench.runs import registry
+    from egs_bench.slam.methods import BUILTIN
+
+    method = dataclasses.replace(BUILTIN["monogs"], name=name, components=components)
+    monkeypatch.setitem(registry._USER, name, method)
+    return name
+
+
 def test_a_run_with_a_swallowed_signal_stops_at_the_next_frame(tmp_path: Path, room_sequence,
                                                                capsys, monkeypatch) -> None:
     """The SLAM loop checks once per frame: a signal swallowed while frame 1 was tracked stops
     the run before frame 2, marked interrupted with the trajectory of what it processed."""
     from safety_helpers import QUICK_RUN
 
-    from egs_bench.slam import system
+    from egs_bench.slam.components import SlamComponents
+    from egs_bench.slam.tracker import GradientTracker
 
-    track_frame = system.track_frame
     tracked: list[int] = []
 
-    def track_then_signal(*args, **kwargs):
-        result = track_frame(*args, **kwargs)
-        tracked.append(result.state.index)
-        if len(tracked) == 1:
-            _swallowed_sigterm()
-        return result
+    class TrackThenSignal(GradientTracker):
+        def track(self, gmap, crf, request):
+            result = super().track(gmap, crf, request)
+            tracked.append(result.state.index)
+            if len(tracked) == 1:
+                _swallowed_sigterm()
+            return result
 
-    monkeypatch.setattr(system, "track_frame", track_then_signal)
+    method = _register_monogs_with(monkeypatch, "monogs-signal-in-tracking",
+                                   SlamComponents(tracker=TrackThenSignal))
     out = tmp_path / "run"
-    code = main(["run", "--method", "monogs", "--seq", str(room_sequence), "--out", str(out),
+    code = main(["run", "--method", method, "--seq", str(room_sequence), "--out", str(out),
                  *QUICK_RUN])
     assert code == 128 + signal.SIGTERM, capsys.readouterr().err
     assert tracked == [1]
@@ -201,24 +216,28 @@ def test_a_run_with_a_swallowed_signal_stops_at_the_next_frame(tmp_path: Path, r
 def test_a_signal_swallowed_in_map_initialisation_stops_it(tmp_path: Path, room_sequence,
                                                            capsys, monkeypatch) -> None:
     """Map initialisation runs minutes without reaching the frame loop: it checks every
-    iteration, so a swallowed signal stops it at the next one."""
+    iteration, so a signal swallowed during its first iteration stops it at the second."""
     from safety_helpers import QUICK_RUN
 
-    from egs_bench.slam import mapper
+    from egs_bench.slam.components import SlamComponents
+    from egs_bench.slam.mapper import Mapper
 
-    render_views = mapper.render_views
-    calls: list[int] = []
+    mappers: list[Mapper] = []
 
-    def render_then_signal(*args, **kwargs):
-        calls.append(1)
-        if len(calls) == 1:
-            _swallowed_sigterm()
-        return render_views(*args, **kwargs)
+    class SignalInFirstIteration(Mapper):
+        def optimise(self, *args, report=None, **kwargs) -> float:
+            def report_then_signal(done: int, total: int) -> None:
+                if done == 0:
+                    _swallowed_sigterm()
 
-    monkeypatch.setattr(mapper, "render_views", render_then_signal)
+            mappers.append(self)
+            return super().optimise(*args, report=report_then_signal, **kwargs)
+
+    method = _register_monogs_with(monkeypatch, "monogs-signal-in-map-init",
+                                   SlamComponents(mapper=SignalInFirstIteration))
     out = tmp_path / "run"
-    code = main(["run", "--method", "monogs", "--seq", str(room_sequence), "--out", str(out),
+    code = main(["run", "--method", method, "--seq", str(room_sequence), "--out", str(out),
                  *QUICK_RUN, "--set", "init_iters=1000"])
     assert code == 128 + signal.SIGTERM, capsys.readouterr().err
-    assert len(calls) == 1
+    assert len(mappers) == 1 and mappers[0].iteration == 1  # stopped at the second iteration
     assert RunFolder.open(out).read_status().state == "interrupted"

@@ -12,11 +12,10 @@ from types import ModuleType, SimpleNamespace
 import numpy as np
 import pytest
 
-import egs_bench.slam.system as slam_system
 from egs_bench.geometry import invert_pose
 from egs_bench.geometry.lie import se3_exp
 from egs_bench.slam.frames import FrameState
-from egs_bench.slam.tracker import TrackResult
+from egs_bench.slam.tracker import TrackRequest, TrackResult
 
 SCRIPT = Path(__file__).resolve().parents[2] / "benchmarks" / "oracle_tracking.py"
 
@@ -60,25 +59,30 @@ def test_pose_error_matches_analytic_offsets() -> None:
     assert oracle.pose_error(truth_cw, truth_cw) == pytest.approx((0.0, 0.0), abs=1e-6)
 
 
-def test_oracle_until_keeps_the_trackers_estimates_after_n_and_records_errors(
-        monkeypatch) -> None:
+class _FakeTracker:
+    """A tracker that returns the truth offset by ``offset`` (a fixed camera-frame motion)."""
+
+    def __init__(self, truth_wc: np.ndarray, offset: np.ndarray) -> None:
+        self.truth_wc, self.offset = truth_wc, offset
+
+    def track(self, gmap, crf, request):
+        i = request.obs.index
+        truth_cw = invert_pose(self.truth_wc[i + 1])
+        start_cw = invert_pose(self.truth_wc[i])
+        return TrackResult(FrameState(i, self.offset @ start_cw, self.offset @ truth_cw,
+                                      0.1, 0.2), 0.0, 5, True)
+
+
+def test_oracle_until_keeps_the_trackers_estimates_after_n_and_records_errors() -> None:
     oracle = _script()
     seq, truth_wc = _fake_sequence(lambda i: (100_000 * i, 100_000 * (i + 1)))
     offset = se3_exp(np.array([0.02, 0.0, 0.0, 0.0, 0.0, 0.0]))  # 2 cm along camera x
-
-    def fake_track(gmap, crf, obs, init, *args, **kwargs):
-        truth_cw = invert_pose(truth_wc[obs.index + 1])
-        start_cw = invert_pose(truth_wc[obs.index])
-        return TrackResult(FrameState(obs.index, offset @ start_cw, offset @ truth_cw,
-                                      0.1, 0.2), 0.0, 5, True)
-
-    monkeypatch.setattr(slam_system, "track_frame", fake_track)
     errors: list[tuple[float, ...]] = []
-    oracle.install_oracle(seq, until=1, errors=errors)
+    tracker = oracle.OracleTracker(_FakeTracker(truth_wc, offset), seq, until=1, errors=errors)
     for i in range(3):
         obs = SimpleNamespace(index=i, fractions=np.linspace(0, 1, 4))
         init = FrameState(i, invert_pose(truth_wc[i]), invert_pose(truth_wc[i]))
-        state = slam_system.track_frame(None, None, obs, init).state
+        state = tracker.track(None, None, TrackRequest(obs, init)).state
         substituted = np.allclose(state.pose1_cw, invert_pose(truth_wc[i + 1]), atol=1e-9)
         assert substituted == (i <= 1), i
         assert (state.exp_a, state.exp_b) == (0.1, 0.2)  # exposure stays the tracker's
@@ -93,22 +97,45 @@ def test_oracle_until_keeps_the_trackers_estimates_after_n_and_records_errors(
         assert float(r["predicted_deg"]) == pytest.approx(0.5, abs=1e-4)
 
 
+class _RecordingMapper:
+    """A map optimiser that records frame 0's exposure start at each call."""
+
+    def __init__(self) -> None:
+        self.seen: list[np.ndarray] = []
+
+    def optimise(self, states, observations, window, all_keyframes, iterations, *,
+                 initial=False, fixed_end_pose=0, report=None) -> float:
+        self.seen.append(states[0].pose0_cw.copy())
+        return 0.0
+
+    def refine(self, states, observations, keyframes, iterations) -> float:
+        return 0.0
+
+
 def test_exposure0_oracle_moves_frame0_start_only_for_the_blur_models_map_initialisation(
-        monkeypatch) -> None:
+        ) -> None:
     oracle = _script()
     # Frame 0's exposure runs from t = 0.05 s (between two dense poses) to t = 0.1 s.
     seq, truth_wc = _fake_sequence(lambda i: (50_000, 100_000))
-    seen: list[np.ndarray] = []
-    monkeypatch.setattr(oracle.Mapper, "optimise",
-                        lambda self, states, *a, **kw: seen.append(states[0].pose0_cw.copy()))
-    oracle.install_exposure0_oracle(seq)
     end_cw = invert_pose(truth_wc[1])
+    seen: list[np.ndarray] = []
     for blur, initial in ((True, True), (True, False), (False, True)):
-        mapper = SimpleNamespace(cfg=SimpleNamespace(method=SimpleNamespace(blur_model=blur)))
-        oracle.Mapper.optimise(mapper, {0: FrameState(0, end_cw.copy(), end_cw.copy())},
-                               initial=initial)
+        inner = _RecordingMapper()
+        mapper = oracle.TrueExposure0Mapper(inner, seq, blur_model=blur)
+        mapper.optimise({0: FrameState(0, end_cw.copy(), end_cw.copy())}, {}, [0], [0], 1,
+                        initial=initial)
+        seen += inner.seen
     moved, refinement, no_blur = seen
     # Halfway between the poses at t = 0 and 0.1: camera centre x = 0.005 m, yaw 0.25 deg.
     assert oracle.pose_error(moved, invert_pose(_camera_to_world(0.005, 0.25))) == \
         pytest.approx((0.0, 0.0), abs=1e-4)
     assert np.array_equal(refinement, end_cw) and np.array_equal(no_blur, end_cw)
+
+
+def test_oracle_components_satisfy_the_slam_protocols() -> None:
+    from egs_bench.slam.components import MapOptimiser, Tracker
+
+    oracle = _script()
+    seq, truth_wc = _fake_sequence(lambda i: (50_000, 100_000))
+    assert isinstance(oracle.OracleTracker(_FakeTracker(truth_wc, np.eye(4)), seq), Tracker)
+    assert isinstance(oracle.TrueExposure0Mapper(_RecordingMapper(), seq, True), MapOptimiser)

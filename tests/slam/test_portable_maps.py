@@ -36,7 +36,7 @@ def egs_run(tmp_path_factory) -> RunFolder:
     from egs_bench.datasets.sequence import Sequence
     from egs_bench.datasets.synthetic import make_synthetic
     from egs_bench.slam import methods
-    from egs_bench.slam.runner import run_slam
+    from egs_bench.slam.runner import RunSettings, run_slam
 
     root = tmp_path_factory.mktemp("portable")
     path = make_synthetic("office", root / "office", frames=FRAMES, width=64, height=48,
@@ -45,7 +45,7 @@ def egs_run(tmp_path_factory) -> RunFolder:
         init_iters=20, tracking_iters=10, mapping_iters=3, views_per_iter=2, kf_interval=2,
         pcd_downsample_init=2, pcd_downsample=4, crf_init="srgb")
     return run_slam(Sequence.open(path), root / "egs", method_name="egs", config=cfg,
-                    preset="cpu", seed=3, progress=False)
+                    settings=RunSettings(preset="cpu", seed=3, progress=False))
 
 
 def test_appearance_file_describes_the_run(egs_run) -> None:

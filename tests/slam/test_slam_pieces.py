@@ -241,24 +241,21 @@ def test_keyframe_selection_rules() -> None:
     r = KeyframeConfig(interval=4, overlap=0.9, min_translation=0.02, translation=0.04)
     same = _vis(list(range(10)))
     half = _vis(list(range(5)))
-    args = dict(last_kf_idx=0, last_kf_pose_cw=_pose_at(0.0), last_kf_vis=same, median_depth=1.0)
-    # too soon
-    assert not keyframes.is_keyframe(3, pose_cw=_pose_at(1.0), vis=half, window_len=1,
-                                     rules=r, window_size=3, **args)
+    policy = keyframes.MonoGSKeyframes(r, window_size=3)
+
+    def wanted(frame: int, x: float, vis: np.ndarray, window_len: int) -> bool:
+        return policy.is_keyframe(keyframes.KeyframeCandidate(
+            frame, 0, _pose_at(x), _pose_at(0.0), vis, same, 1.0, window_len))
+
+    assert not wanted(3, 1.0, half, 1)  # too soon
     # window not full: overlap decides
-    assert keyframes.is_keyframe(4, pose_cw=_pose_at(0.0), vis=half, window_len=1, rules=r,
-                                 window_size=3, **args)
-    assert not keyframes.is_keyframe(4, pose_cw=_pose_at(1.0), vis=same, window_len=1, rules=r,
-                                     window_size=3, **args)
+    assert wanted(4, 0.0, half, 1)
+    assert not wanted(4, 1.0, same, 1)
     # window full: large translation alone, small translation needs low overlap
-    assert keyframes.is_keyframe(4, pose_cw=_pose_at(0.05), vis=same, window_len=3, rules=r,
-                                 window_size=3, **args)
-    assert not keyframes.is_keyframe(4, pose_cw=_pose_at(0.03), vis=same, window_len=3, rules=r,
-                                     window_size=3, **args)
-    assert keyframes.is_keyframe(4, pose_cw=_pose_at(0.03), vis=half, window_len=3, rules=r,
-                                 window_size=3, **args)
-    assert not keyframes.is_keyframe(4, pose_cw=_pose_at(0.01), vis=half, window_len=3, rules=r,
-                                     window_size=3, **args)
+    assert wanted(4, 0.05, same, 3)
+    assert not wanted(4, 0.03, same, 3)
+    assert wanted(4, 0.03, half, 3)
+    assert not wanted(4, 0.01, half, 3)
 
 
 def test_window_removal_overlap_then_dso() -> None:

@@ -20,8 +20,10 @@ from egs_bench.render.ply import load_ply
 from egs_bench.runs import registry
 from egs_bench.runs.folder import RunFolder
 from egs_bench.slam import methods
+from egs_bench.slam.components import SlamComponents
 from egs_bench.slam.config import cpu_preset
-from egs_bench.slam.runner import run_slam
+from egs_bench.slam.runner import RunSettings, run_slam
+from egs_bench.slam.tracker import GradientTracker, TrackRequest, TrackResult
 
 # Small but complete: every stage runs (init mapping, tracking with events, keyframe mapping).
 FAST = dict(resolution_scale=1.0, init_iters=20, tracking_iters=20, mapping_iters=3,
@@ -38,40 +40,53 @@ def tiny_room(tmp_path_factory) -> Path:
                           width=64, height=48, speed=0.4, seed=1, progress=False)
 
 
+QUIET = RunSettings(preset="cpu", progress=False)
+
+
+def tracker_wrapped(around) -> SlamComponents:
+    """Components whose tracker is ``around(inner, gmap, crf, request)`` around the built-in
+    one (the seam a researcher's tracker plugs into)."""
+    class Wrapped:
+        def __init__(self, ctx) -> None:
+            self.inner = GradientTracker(ctx)
+
+        def track(self, gmap, crf, request: TrackRequest) -> TrackResult:
+            return around(self.inner, gmap, crf, request)
+
+    return SlamComponents(tracker=Wrapped)
+
+
 @pytest.fixture(scope="module")
 def egs_run(tiny_room: Path, tmp_path_factory) -> tuple[RunFolder, Sequence]:
     seq = Sequence.open(tiny_room)
     cfg = methods.BUILTIN["egs"].config("cpu").replace(**FAST)
     run = run_slam(seq, tmp_path_factory.mktemp("runs") / "egs", method_name="egs", config=cfg,
-                   preset="cpu", seed=3, progress=False)
+                   settings=RunSettings(preset="cpu", seed=3, progress=False))
     return run, seq
 
 
 @pytest.mark.parametrize("no_prior, expected", [(5, [(1, 5), (2, 2), (3, 2)]),
                                                 (None, [(1, 2), (2, 2), (3, 2)])])
 def test_frame_without_velocity_gets_the_no_prior_iteration_budget(
-        tiny_sequence: Path, tmp_path: Path, monkeypatch, no_prior: int | None,
+        tiny_sequence: Path, tmp_path: Path, no_prior: int | None,
         expected: list[tuple[int, int]]) -> None:
     """Frame 1 has no velocity to extrapolate: it is tracked with
     ``tracking_iters_no_prior`` iterations (None: ``tracking_iters``); later frames with
     ``tracking_iters``."""
-    from egs_bench.slam import system
-
     seq = Sequence.open(tiny_sequence)
     cfg = methods.BUILTIN["monogs"].config("cpu").replace(
         **{**FAST, "tracking_iters": 2, "init_iters": 2, "tracking_iters_no_prior": no_prior})
-    real = system.track_frame
     used: list[tuple[int, int]] = []
 
-    def counting(gmap, crf, obs, init, *args, **kw):
-        res = real(gmap, crf, obs, init, *args, **kw)
-        used.append((obs.index, res.iterations))
+    def counting(inner, gmap, crf, request):
+        res = inner.track(gmap, crf, request)
+        used.append((request.obs.index, res.iterations))
         return res
 
-    monkeypatch.setattr(system, "track_frame", counting)
     cfg = cfg.replace(converged_threshold=1e-12)  # run every iteration of the budget
-    run_slam(seq, tmp_path / "run", method_name="monogs", config=cfg, max_frames=4,
-             progress=False)
+    run_slam(seq, tmp_path / "run", method_name="monogs", config=cfg,
+             settings=RunSettings(max_frames=4, progress=False),
+             components=tracker_wrapped(counting))
     assert used == expected
 
 
@@ -115,8 +130,7 @@ def test_end_to_end_tracking_error_is_a_fraction_of_the_motion(small_room: Path,
     monogs 0.99 cm, vs 9.13 cm for the stuck tracker."""
     seq = Sequence.open(small_room)
     cfg = methods.BUILTIN[method].config("cpu").replace(resolution_scale=1.0)
-    run = run_slam(seq, tmp_path / method, method_name=method, config=cfg, preset="cpu",
-                   seed=0, progress=False)
+    run = run_slam(seq, tmp_path / method, method_name=method, config=cfg, settings=QUIET)
     traj = run.read_trajectory()
     err = np.sqrt(((traj.poses[:, :3, 3] - seq.poses[:, :3, 3]) ** 2).sum(1).mean())
     stuck = np.sqrt(((seq.poses[:1, :3, 3] - seq.poses[:, :3, 3]) ** 2).sum(1).mean())
@@ -124,30 +138,27 @@ def test_end_to_end_tracking_error_is_a_fraction_of_the_motion(small_room: Path,
 
 
 def test_divergence_falls_back_to_retracking_then_previous_pose(tiny_sequence: Path,
-                                                                tmp_path: Path,
-                                                                monkeypatch) -> None:
+                                                                tmp_path: Path) -> None:
     """A pose jump beyond the physical bound is detected, logged, re-tracked from the previous
     pose with half the learning rate, and if that diverges too the previous pose is kept."""
-    from egs_bench.slam import system
-
     seq = Sequence.open(tiny_sequence)
     cfg = methods.BUILTIN["monogs"].config("cpu").replace(
         **{**FAST, "tracking_iters": 2, "init_iters": 2})
-    real = system.track_frame
     calls: list[tuple[int, float]] = []
 
-    def jumpy(gmap, crf, obs, init, *args, lr_scale=1.0, **kw):
-        calls.append((obs.index, lr_scale))
-        res = real(gmap, crf, obs, init, *args, lr_scale=lr_scale, **kw)
+    def jumpy(inner, gmap, crf, request):
+        index, lr_scale = request.obs.index, request.lr_scale
+        calls.append((index, lr_scale))
+        res = inner.track(gmap, crf, request)
         # frame 1: the first attempt jumps 2 m; frame 2: both attempts jump
-        if (obs.index == 1 and lr_scale == 1.0) or obs.index == 2:
+        if (index == 1 and lr_scale == 1.0) or index == 2:
             res.state.pose1_cw = res.state.pose1_cw.copy()
             res.state.pose1_cw[0, 3] += 2.0
         return res
 
-    monkeypatch.setattr(system, "track_frame", jumpy)
-    run = run_slam(seq, tmp_path / "run", method_name="monogs", config=cfg, max_frames=3,
-                   progress=False)
+    run = run_slam(seq, tmp_path / "run", method_name="monogs", config=cfg,
+                   settings=RunSettings(max_frames=3, progress=False),
+                   components=tracker_wrapped(jumpy))
     assert calls == [(1, 1.0), (1, 0.5), (2, 1.0), (2, 0.5)]
     assert run.read_status().state == "done"
     stats = json.loads((run.path / "slam_stats.json").read_text())
@@ -165,10 +176,9 @@ def test_cpu_run_is_deterministic(tiny_sequence: Path, tmp_path: Path) -> None:
     seq = Sequence.open(tiny_sequence)
     cfg = methods.BUILTIN["monogs"].config("cpu").replace(
         **{**FAST, "tracking_iters": 5, "init_iters": 5})
-    a = run_slam(seq, tmp_path / "a", method_name="monogs", config=cfg, seed=1, max_frames=2,
-                 progress=False)
-    b = run_slam(seq, tmp_path / "b", method_name="monogs", config=cfg, seed=1, max_frames=2,
-                 progress=False)
+    settings = RunSettings(seed=1, max_frames=2, progress=False)
+    a = run_slam(seq, tmp_path / "a", method_name="monogs", config=cfg, settings=settings)
+    b = run_slam(seq, tmp_path / "b", method_name="monogs", config=cfg, settings=settings)
     np.testing.assert_array_equal(a.read_trajectory().poses, b.read_trajectory().poses)
     assert (a.path / "map.ply").read_bytes() == (b.path / "map.ply").read_bytes()
 
@@ -177,8 +187,8 @@ def test_single_frame_sequence(tiny_sequence: Path, tmp_path: Path) -> None:
     seq = Sequence.open(tiny_sequence)
     cfg = methods.BUILTIN["egs"].config("cpu").replace(
         **{**FAST, "init_iters": 3, "tracking_iters": 3})
-    one = run_slam(seq, tmp_path / "one", method_name="egs", config=cfg, max_frames=1,
-                   progress=False)
+    one = run_slam(seq, tmp_path / "one", method_name="egs", config=cfg,
+                   settings=RunSettings(max_frames=1, progress=False))
     assert len(one.read_trajectory().poses) == 1
 
 
@@ -187,40 +197,37 @@ def test_single_frame_sequence(tiny_sequence: Path, tmp_path: Path) -> None:
     (KeyboardInterrupt(), "interrupted", "SIGINT"),
     (Interrupted(signal.SIGTERM), "interrupted", "interrupted by SIGTERM"),
 ])
-def test_failure_marks_run_failed_or_interrupted(tiny_sequence: Path, tmp_path: Path, monkeypatch,
+def test_failure_marks_run_failed_or_interrupted(tiny_sequence: Path, tmp_path: Path,
                                                  exc: BaseException, state: str,
                                                  words: str) -> None:
     seq = Sequence.open(tiny_sequence)
     cfg = methods.BUILTIN["monogs"].config("cpu").replace(**FAST)
 
-    def boom(*_a, **_k):
+    def boom(*_a):
         raise exc
 
-    monkeypatch.setattr("egs_bench.slam.system.track_frame", boom)
     with pytest.raises(type(exc)):
-        run_slam(seq, tmp_path / "run", method_name="monogs", config=cfg, progress=False)
+        run_slam(seq, tmp_path / "run", method_name="monogs", config=cfg, settings=QUIET,
+                 components=tracker_wrapped(boom))
     status = RunFolder.open(tmp_path / "run").read_status()
     assert status.state == state and words in status.reason
 
 
 def test_interrupted_run_keeps_the_trajectory_of_the_processed_frames(
-        tiny_sequence: Path, tmp_path: Path, monkeypatch) -> None:
+        tiny_sequence: Path, tmp_path: Path) -> None:
     """Ctrl-C (or a cluster's SIGTERM) at frame 2: the run is marked interrupted and holds the
     poses of frames 0 and 1, so it can be scored over them."""
-    from egs_bench.slam import system
-
     seq = Sequence.open(tiny_sequence)
     cfg = methods.BUILTIN["monogs"].config("cpu").replace(**FAST)
-    real = system.track_frame
 
-    def stop_at_2(gmap, crf, obs, *args, **kwargs):
-        if obs.index == 2:
+    def stop_at_2(inner, gmap, crf, request):
+        if request.obs.index == 2:
             raise KeyboardInterrupt
-        return real(gmap, crf, obs, *args, **kwargs)
+        return inner.track(gmap, crf, request)
 
-    monkeypatch.setattr(system, "track_frame", stop_at_2)
     with pytest.raises(KeyboardInterrupt):
-        run_slam(seq, tmp_path / "run", method_name="monogs", config=cfg, progress=False)
+        run_slam(seq, tmp_path / "run", method_name="monogs", config=cfg, settings=QUIET,
+                 components=tracker_wrapped(stop_at_2))
     run = RunFolder.open(tmp_path / "run")
     assert run.read_status().state == "interrupted"
     traj = run.read_trajectory()
@@ -334,9 +341,9 @@ def test_black_frame_missing_depth_and_no_events_run_through(tiny_sequence: Path
         with pytest.raises(InputError, match=r"meta.yaml: has_events is false, but the method "
                                              r"uses events \(event_tracking, event_mapping\)"):
             run_slam(seq, tmp_path / "egs", method_name="egs",
-                     config=methods.BUILTIN["egs"].config("cpu"), progress=False)
+                     config=methods.BUILTIN["egs"].config("cpu"), settings=QUIET)
         assert not (tmp_path / "egs").exists()
-    run = run_slam(seq, tmp_path / "run", method_name=name, config=cfg, progress=False)
+    run = run_slam(seq, tmp_path / "run", method_name=name, config=cfg, settings=QUIET)
     assert run.read_status().state == "done"
     poses = run.read_trajectory().poses
     assert len(poses) == len(seq) and np.isfinite(poses).all()
@@ -422,7 +429,7 @@ def test_auto_preset_and_device(tiny_sequence: Path, tmp_path: Path, monkeypatch
 
 def test_final_refinement_lowers_keyframe_loss_and_keeps_poses(tiny_sequence: Path) -> None:
     from egs_bench.slam.exposure import exposure_path
-    from egs_bench.slam.render_model import blur_loss, prepare_targets, render_views
+    from egs_bench.slam.render_model import blur_loss, prepare_targets
     from egs_bench.slam.system import SlamSystem
 
     seq = Sequence.open(tiny_sequence)
@@ -430,20 +437,19 @@ def test_final_refinement_lowers_keyframe_loss_and_keeps_poses(tiny_sequence: Pa
     system = SlamSystem(seq, cfg, seed=0)
     result = system.run(len(seq))
     states = {k: result.states[k] for k in result.keyframes}
-    obs = {k: system._obs(k) for k in result.keyframes}
+    obs = {k: system.obs(k) for k in result.keyframes}
     poses = {k: (s.pose0_cw.copy(), s.pose1_cw.copy()) for k, s in states.items()}
 
     def keyframe_loss() -> float:
         total = 0.0
         for k, s in states.items():
             views = exposure_path(s.pose0_cw, s.pose1_cw, obs[k].fractions)[0]
-            res = render_views(system.gmap, views, system.K, system.cam.width,
-                               system.cam.height, cfg)
-            targets = prepare_targets(obs[k], cfg, system.theta, tracking=False,
+            res = system.ctx.render(system.gmap, views)
+            targets = prepare_targets(obs[k], cfg, system.ctx.theta, tracking=False,
                                       use_events=True)
             exp_ab = torch.tensor([[s.exp_a, s.exp_b]])
             total += blur_loss(res, targets, system.crf, exp_ab, cfg, tracking=False,
-                               eps=system.eps).item()
+                               eps=system.ctx.eps).item()
         return total / len(states)
 
     before = keyframe_loss()

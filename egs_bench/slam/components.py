@@ -1,0 +1,101 @@
+"""The seams of the SLAM system: the parts a researcher can replace.
+
+:class:`~egs_bench.slam.system.SlamSystem` runs the frame loop and asks three components for
+the decisions inside it:
+
+* a :class:`Tracker` estimates each frame's exposure trajectory against the fixed map;
+* a :class:`MapOptimiser` builds the map on frame 0 and refines it on each keyframe window;
+* a :class:`KeyframePolicy` decides which frames become keyframes and which leave the window.
+
+:class:`SlamComponents` holds a factory for each, called once per run with the run's
+:class:`~egs_bench.slam.context.SlamContext`; its defaults are the built-in EGS-SLAM / MonoGS
+parts, configured by the method's :class:`~egs_bench.slam.config.SlamConfig`. A factory may
+wrap the default (the ground-truth oracles of ``benchmarks/oracle_tracking.py`` do) or replace
+it. ``docs/guide/extending.md`` shows how, with an example that the test suite runs.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+
+from egs_bench.render import GaussianMap
+from egs_bench.slam.context import SlamContext
+from egs_bench.slam.crf import CameraResponse
+from egs_bench.slam.frames import FrameObs, FrameState
+from egs_bench.slam.keyframes import KeyframeCandidate, MonoGSKeyframes
+from egs_bench.slam.mapper import Mapper
+from egs_bench.slam.tracker import GradientTracker, TrackRequest, TrackResult
+
+
+@runtime_checkable
+class Tracker(Protocol):
+    """Estimates one frame's exposure trajectory; the map is not changed."""
+
+    def track(self, gmap: GaussianMap, crf: CameraResponse, request: TrackRequest
+              ) -> TrackResult:
+        """The frame's estimated :class:`~egs_bench.slam.frames.FrameState` (poses
+        world-to-camera [4, 4] float64), its final loss and the iterations it took."""
+        ...
+
+
+@runtime_checkable
+class MapOptimiser(Protocol):
+    """Optimises the map (and keyframe poses and exposures, if it chooses) in place."""
+
+    def optimise(self, states: dict[int, FrameState], observations: dict[int, FrameObs],
+                 window: list[int], all_keyframes: list[int], iterations: int,
+                 *, initial: bool = False, fixed_end_pose: int | None = 0,
+                 report: Callable[[int, int], None] | None = None) -> float:
+        """One mapping round over ``window`` (newest first); ``initial`` on frame 0.
+        Returns the last loss."""
+        ...
+
+    def refine(self, states: dict[int, FrameState], observations: dict[int, FrameObs],
+               keyframes: list[int], iterations: int) -> float:
+        """The final refinement after the last frame (``mapping.refine_iters`` > 0)."""
+        ...
+
+
+@runtime_checkable
+class KeyframePolicy(Protocol):
+    """Keyframe selection and window maintenance."""
+
+    def is_keyframe(self, candidate: KeyframeCandidate) -> bool:
+        ...
+
+    def update_window(self, window: list[int], new_kf: int, visibility: dict[int, np.ndarray],
+                      poses_cw: dict[int, np.ndarray]) -> tuple[list[int], list[int]]:
+        """``(window with new_kf in front, removed keyframes)``; visibility bool [N] and
+        world-to-camera poses [4, 4] by keyframe."""
+        ...
+
+
+TrackerFactory = Callable[[SlamContext], Tracker]
+MapperFactory = Callable[[SlamContext, GaussianMap, CameraResponse, np.random.Generator],
+                         MapOptimiser]
+KeyframePolicyFactory = Callable[[SlamContext], KeyframePolicy]
+
+
+def monogs_keyframes(ctx: SlamContext) -> KeyframePolicy:
+    """The default keyframe policy: MonoGS's rules with the configured window size."""
+    return MonoGSKeyframes(ctx.cfg.keyframes, ctx.cfg.budget.window_size)
+
+
+@dataclass(frozen=True)
+class SlamComponents:
+    """Factories of the replaceable parts; the defaults are the built-in ones.
+
+    Attributes:
+        tracker: ``tracker(ctx) -> Tracker``.
+        mapper: ``mapper(ctx, gmap, crf, rng) -> MapOptimiser``; ``rng`` is the run's seeded
+            generator for random view choices.
+        keyframes: ``keyframes(ctx) -> KeyframePolicy``.
+    """
+
+    tracker: TrackerFactory = GradientTracker
+    mapper: MapperFactory = Mapper
+    keyframes: KeyframePolicyFactory = monogs_keyframes
