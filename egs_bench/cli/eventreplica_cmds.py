@@ -20,8 +20,9 @@ def make_eventreplica_cmd(
     ),
     input: Path | None = typer.Option(
         None, "--input", "-i",
-        help="One scene in NICE-SLAM Replica layout: results/frameNNNNNN.jpg, "
-             "results/depthNNNNNN.png (scale 6553.5), traj.txt (16 numbers per line, c2w).",
+        help="One scene: with --layout replica (default) results/frameNNNNNN.jpg, "
+             "results/depthNNNNNN.png (scale 6553.5), traj.txt (16 numbers per line, c2w); "
+             "with --layout tum-rgbd a TUM RGB-D folder.",
     ),
     layout: str = typer.Option(
         "replica", "--layout",

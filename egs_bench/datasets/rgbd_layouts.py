@@ -372,7 +372,8 @@ def read_tum_rgbd(
     i_rgb, i_depth, i_gt = i_rgb[k_rgb], i_depth[k_rgb], gt_rows[k_gt]
     rgb_paths = tuple(_listed_file(root, rgb_files[i], names["rgb"]) for i in i_rgb)
     depth_paths = tuple(_listed_file(root, depth_files[i], names["depth"]) for i in i_depth)
-    camera, source, scale, distortion = _tum_camera(root, intrinsics, tum_camera, rgb_paths[0])
+    camera, camera_file, scale, distortion = _tum_camera(root, intrinsics, tum_camera,
+                                                         rgb_paths[0])
     stamps = t_rgb[i_rgb]
     record = {
         "association": {
@@ -385,12 +386,13 @@ def read_tum_rgbd(
             "max_pose_dt_s": float(np.abs(stamps - gt.timestamps[i_gt]).max()),
             "largest_frame_gap_s": float(np.diff(stamps).max()),
         },
-        "camera_source": source,
+        "camera_source": f"TUM {tum_camera or _folder_camera(root)} calibration"
+                         if camera_file is None else str(camera_file),
     }
     scene = ReplicaScene(
         path=root, rgb_paths=rgb_paths, depth_paths=depth_paths,
         poses=gt.poses[i_gt], intrinsics=camera, depth_scale=scale,
-        cam_params_path=None if intrinsics is None else Path(intrinsics),
+        cam_params_path=camera_file,
         distortion=distortion, layout="tum-rgbd", timestamps_s=stamps, record=record,
     )
     if check_image_headers:
@@ -448,28 +450,34 @@ def read_generic_rgbd(
 
 
 def _tum_camera(root: Path, explicit: str | Path | None, name: str | None, first_rgb: Path
-                ) -> tuple[Intrinsics, str, float, tuple[float, ...]]:
-    """Intrinsics, where they came from, the depth scale and the distortion of a TUM folder."""
+                ) -> tuple[Intrinsics, Path | None, float, tuple[float, ...]]:
+    """Intrinsics, the camera file they came from (None: a TUM calibration), the depth scale
+    and the distortion of a TUM folder."""
     if name is None and explicit is None:
         manifest = root / EXPORT_MANIFEST
-        match = _FOLDER_CAMERA_RE.search(root.resolve().name)
         if manifest.is_file():
             explicit = manifest
-        elif match is not None:
-            name = f"fr{match.group(1)}"
         else:
-            raise InputError(root, "no camera intrinsics: give --intrinsics FILE.yaml or "
-                                   f"--tum-camera {'|'.join(TUM_CAMERAS)} (the folder has no "
-                                   f"{EXPORT_MANIFEST} and its name names no freiburg camera)")
+            name = _folder_camera(root)
     if name is not None:
         cam = TUM_CAMERAS[name]
         width, height = _TUM_SIZE
         intr = Intrinsics(cam.fx, cam.fy, cam.cx + 0.5, cam.cy + 0.5, width, height)
-        return intr, f"TUM {name} calibration", TUM_DEPTH_SCALE, cam.distortion
+        return intr, None, TUM_DEPTH_SCALE, cam.distortion
     assert explicit is not None
     file = read_camera_yaml(explicit)
     scale = TUM_DEPTH_SCALE if file.depth_scale is None else file.depth_scale
-    return _intrinsics(file, first_rgb), str(file.path), scale, file.distortion
+    return _intrinsics(file, first_rgb), file.path, scale, file.distortion
+
+
+def _folder_camera(root: Path) -> str:
+    """The TUM camera a folder's name names (``rgbd_dataset_freiburg2_desk`` -> ``fr2``)."""
+    match = _FOLDER_CAMERA_RE.search(root.resolve().name)
+    if match is None:
+        raise InputError(root, "no camera intrinsics: give --intrinsics FILE.yaml or "
+                               f"--tum-camera {'|'.join(TUM_CAMERAS)} (the folder has no "
+                               f"{EXPORT_MANIFEST} and its name names no freiburg camera)")
+    return f"fr{match.group(1)}"
 
 
 def _intrinsics(cam: CameraFile, first_rgb: Path) -> Intrinsics:
