@@ -393,3 +393,17 @@ def test_rgbd_input_validates_and_lists_its_inputs(tmp_path):
         RGBDInput(layout="tum-rgbd", path=tmp_path, max_dt_s=0.0)
     with pytest.raises(InputError, match="TUM RGB-D folder does not exist"):
         RGBDInput(layout="tum-rgbd", path=tmp_path / "missing").open()
+
+
+@pytest.mark.parametrize("where", ["input", "inside"])
+def test_output_may_not_replace_the_input_layout(tum_export, capsys, where):
+    """Never lose user data: the TUM folder (or a folder around it) is refused as --out, even
+    with --overwrite, and nothing in it changes."""
+    before = sorted(p.relative_to(tum_export) for p in tum_export.rglob("*"))
+    out = tum_export if where == "input" else tum_export / "rgb"
+    code = main(["make-eventreplica", "--layout", "tum-rgbd", "--input", str(tum_export),
+                 "--out", str(out), "--overwrite", "--width", "48", "--height", "32",
+                 "--no-progress"])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and len(err.splitlines()) == 1 and str(out) in err
+    assert sorted(p.relative_to(tum_export) for p in tum_export.rglob("*")) == before
