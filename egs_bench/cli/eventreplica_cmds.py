@@ -1,4 +1,4 @@
-"""CLI command ``make-eventreplica``: blurred E-RGB-D sequences from Replica-layout RGB-D data."""
+"""CLI command ``make-eventreplica``: blurred E-RGB-D sequences from RGB-D + pose data."""
 
 from __future__ import annotations
 
@@ -20,8 +20,38 @@ def make_eventreplica_cmd(
     ),
     input: Path | None = typer.Option(
         None, "--input", "-i",
-        help="One scene in NICE-SLAM Replica layout: results/frameNNNNNN.jpg, "
-             "results/depthNNNNNN.png (scale 6553.5), traj.txt (16 numbers per line, c2w).",
+        help="One scene: with --layout replica (default) results/frameNNNNNN.jpg, "
+             "results/depthNNNNNN.png (scale 6553.5), traj.txt (16 numbers per line, c2w); "
+             "with --layout tum-rgbd a TUM RGB-D folder.",
+    ),
+    layout: str = typer.Option(
+        "replica", "--layout",
+        help="Input layout: 'replica' (NICE-SLAM), 'tum-rgbd' (--input with rgb.txt, depth.txt, "
+             "groundtruth.txt; depth scale 5000) or 'generic' (--rgb-dir, --depth-dir, "
+             "--trajectory, --intrinsics).",
+    ),
+    intrinsics: Path | None = typer.Option(
+        None, "--intrinsics",
+        help="Camera yaml for tum-rgbd / generic: fx, fy, cx, cy (OpenCV convention), optional "
+             "width, height, distortion [k1 k2 p1 p2 k3], depth_scale (required for generic).",
+    ),
+    tum_camera: str | None = typer.Option(
+        None, "--tum-camera",
+        help="tum-rgbd: use the TUM calibration of fr1, fr2 or fr3 (default: egs_export.yaml "
+             "in the folder, else the freiburgN in the folder name).",
+    ),
+    max_dt: float = typer.Option(
+        0.02, "--max-dt",
+        help="tum-rgbd: largest time difference (s) when associating colour, depth and poses.",
+    ),
+    rgb_dir: Path | None = typer.Option(
+        None, "--rgb-dir", help="generic: folder of colour images (natural name order)."),
+    depth_dir: Path | None = typer.Option(
+        None, "--depth-dir", help="generic: folder of 16-bit depth PNGs (same order and count)."),
+    trajectory: Path | None = typer.Option(
+        None, "--trajectory",
+        help="generic: TUM trajectory (t tx ty tz qx qy qz qw, camera-to-world), one pose per "
+             "image.",
     ),
     replica_root: Path | None = typer.Option(
         None, "--replica-root",
@@ -81,30 +111,48 @@ def make_eventreplica_cmd(
     overwrite: bool = typer.Option(False, "--overwrite", help="Replace existing outputs."),
     progress: bool = typer.Option(True, "--progress/--no-progress", help="Show progress bars."),
 ) -> None:
-    """Make EventReplica-style sequences: resize + crop, temporal upsampling, events, blur."""
+    """Make EventReplica-style sequences from RGB-D + pose data (Replica, TUM RGB-D or generic
+    layout): resize + crop, temporal upsampling, events, blur."""
     from egs_bench.color import LdrResponse
     from egs_bench.datasets.esim import EventSimConfig
     from egs_bench.datasets.eventreplica import make_eventreplica, make_eventreplica_scenes
+    from egs_bench.datasets.rgbd_layouts import RGBDInput
     from egs_bench.errors import ConfigError
 
-    if (input is None) == (replica_root is None):
+    if layout != "replica":
+        if replica_root is not None or scene:
+            raise ConfigError("--replica-root and --scene only work with --layout replica")
+        if cam_params is not None:
+            raise ConfigError("--cam-params is the Replica layout's camera file; use "
+                              "--intrinsics with --layout tum-rgbd or generic")
+        spec = RGBDInput(layout=layout, path=input, rgb_dir=rgb_dir, depth_dir=depth_dir,
+                         trajectory=trajectory, camera=intrinsics, tum_camera=tum_camera,
+                         max_dt_s=max_dt)
+    elif intrinsics is not None or tum_camera is not None or any(
+            p is not None for p in (rgb_dir, depth_dir, trajectory)):
+        raise ConfigError("--intrinsics, --tum-camera, --rgb-dir, --depth-dir and --trajectory "
+                          "need --layout tum-rgbd or generic")
+    elif (input is None) == (replica_root is None):
         raise ConfigError("give exactly one of --input DIR or --replica-root ROOT --scene NAME")
-    if replica_root is not None and not scene:
+    elif replica_root is not None and not scene:
         raise ConfigError("--replica-root needs at least one --scene NAME")
-    if input is not None and scene:
+    elif input is not None and scene:
         raise ConfigError("--scene only works with --replica-root")
     kwargs: dict[str, Any] = dict(
         stride=stride, fps=fps, exposure_ms=exposure_ms, upsample=upsample,
         interpolator=interpolator, width=width, height=height, resize=_parse_size(resize),
-        first=first, max_frames=max_frames, cam_params=cam_params,
+        first=first, max_frames=max_frames,
         sim=EventSimConfig(pos_threshold=threshold, neg_threshold=threshold, eps=eps, seed=seed),
         response=LdrResponse(gain=gain), progress=progress, overwrite=overwrite,
     )
-    if input is not None:
-        outputs = [make_eventreplica(input, out, **kwargs)]
+    if layout != "replica":
+        outputs = [make_eventreplica(spec, out, **kwargs)]
+    elif input is not None:
+        outputs = [make_eventreplica(input, out, cam_params=cam_params, **kwargs)]
     else:
         assert replica_root is not None  # exactly one of --input / --replica-root, checked above
-        outputs = make_eventreplica_scenes(replica_root, scene or [], out, **kwargs)
+        outputs = make_eventreplica_scenes(replica_root, scene or [], out,
+                                           cam_params=cam_params, **kwargs)
     for path in outputs:
         Console().print(f"wrote {path}")
 

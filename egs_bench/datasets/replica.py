@@ -30,9 +30,12 @@ import json
 import math
 import re
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from functools import lru_cache
 from pathlib import Path
+from typing import Any
 
+import cv2
 import numpy as np
 
 from egs_bench.errors import InputError
@@ -56,22 +59,38 @@ CAM_PARAMS_NAME = "cam_params.json"
 # Rotation blocks in traj.txt are printed with limited precision; beyond this they are not poses.
 _ORTHONORMAL_TOL = 1e-3
 
+# Pillow modes of the 8-bit images read_ldr_image expands to RGB (alpha dropped)
+_COLOUR_MODES = ("RGB", "L", "RGBA", "P")
+
 _RGB_RE = re.compile(r"^frame(\d+)\.(jpg|jpeg|png)$", re.IGNORECASE)
 _DEPTH_RE = re.compile(r"^depth(\d+)\.png$", re.IGNORECASE)
 
 
 @dataclass(frozen=True)
 class ReplicaScene:
-    """An opened, validated Replica-layout scene. Frames are read lazily.
+    """An opened, validated RGB-D + pose scene. Frames are read lazily.
+
+    The Replica reader below makes one; :mod:`egs_bench.datasets.rgbd_layouts` makes the same
+    object from a TUM RGB-D folder or a generic image/depth/trajectory layout, so the
+    EventReplica generator reads every layout through this one interface.
 
     Attributes:
-        path: the scene folder.
+        path: the scene folder (for the generic layout: the colour image folder).
         rgb_paths: colour image per frame, in frame order.
         depth_paths: depth image per frame.
         poses: camera-to-world poses ``T_wc``, [N, 4, 4] float64 (rotations re-orthonormalised).
         intrinsics: pinhole intrinsics in egs-bench's convention (pixel centre at ``u + 0.5``).
         depth_scale: PNG value per metre.
-        cam_params_path: the ``cam_params.json`` used, or None for the defaults.
+        cam_params_path: the camera file used (``cam_params.json``, an intrinsics yaml), or None
+            for built-in defaults.
+        distortion: OpenCV ``k1 k2 p1 p2 [k3]`` of the colour camera (the depth maps are
+            registered to it); empty for an undistorted pinhole. Frames are undistorted to
+            ``intrinsics`` on reading.
+        layout: ``"replica"``, ``"tum-rgbd"`` or ``"generic"``.
+        timestamps_s: the layout's own time stamp of each frame [N] in seconds, or None (the
+            Replica layout has none).
+        record: how the layout was read (association statistics, camera source), for
+            ``meta.yaml``.
     """
 
     path: Path
@@ -81,6 +100,10 @@ class ReplicaScene:
     intrinsics: Intrinsics
     depth_scale: float
     cam_params_path: Path | None
+    distortion: tuple[float, ...] = ()
+    layout: str = "replica"
+    timestamps_s: np.ndarray | None = None
+    record: dict[str, Any] = field(default_factory=dict)
 
     def __len__(self) -> int:
         return len(self.rgb_paths)
@@ -94,6 +117,9 @@ class ReplicaScene:
         path = self.rgb_paths[index]
         img = read_ldr_image(path)
         self._check_size(path, img)
+        if self.distortion:
+            map_x, map_y = _undistort_maps(self.intrinsics, self.distortion)
+            img = cv2.remap(img, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
         return img
 
     def depth(self, index: int) -> np.ndarray:
@@ -101,6 +127,12 @@ class ReplicaScene:
         path = self.depth_paths[index]
         raw = read_depth_png(path)
         self._check_size(path, raw)
+        if self.distortion:
+            # nearest neighbour: blending depths across an edge invents points on no surface;
+            # pixels mapped from outside the image become 0 (invalid)
+            map_x, map_y = _undistort_maps(self.intrinsics, self.distortion)
+            raw = cv2.remap(raw, map_x, map_y, cv2.INTER_NEAREST,
+                            borderMode=cv2.BORDER_CONSTANT, borderValue=0)
         return (raw.astype(np.float32) / np.float32(self.depth_scale)).astype(np.float32)
 
     def _check_size(self, path: Path, img: np.ndarray) -> None:
@@ -159,7 +191,7 @@ def read_replica(
         cam_params_path=cam_path,
     )
     if check_image_headers:
-        _check_headers(scene)
+        check_headers(scene)
     return scene
 
 
@@ -283,6 +315,23 @@ def export_replica_layout(
 # --- helpers -----------------------------------------------------------------------------------
 
 
+@lru_cache(maxsize=4)
+def _undistort_maps(intrinsics: Intrinsics, distortion: tuple[float, ...]
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """``cv2.remap`` maps [H, W] float32 that undistort an image of ``intrinsics`` (same K out).
+
+    OpenCV puts pixel centres at integer coordinates, so K is shifted by 0.5 from egs-bench's
+    convention (docs/design.md §2) in both directions and the maps index source pixels directly.
+    """
+    k = intrinsics.K.copy()
+    k[0, 2] -= 0.5
+    k[1, 2] -= 0.5
+    size = (intrinsics.width, intrinsics.height)
+    map_x, map_y = cv2.initUndistortRectifyMap(
+        k, np.asarray(distortion, dtype=np.float64), None, k, size, cv2.CV_32FC1)
+    return map_x, map_y
+
+
 def _read_camera(
     root: Path, explicit: str | Path | None
 ) -> tuple[Intrinsics, float, Path | None]:
@@ -346,7 +395,12 @@ def _numbered_files(folder: Path, pattern: re.Pattern[str], what: str) -> list[P
     return [found[i] for i in range(len(found))]
 
 
-def _check_headers(scene: ReplicaScene) -> None:
+def check_headers(scene: ReplicaScene) -> None:
+    """Check every image's size (against ``scene.intrinsics``) and pixel type from its header.
+
+    Raises:
+        InputError: naming the first image of the wrong size or type.
+    """
     want = (scene.intrinsics.width, scene.intrinsics.height)
     for kind, paths in (("colour", scene.rgb_paths), ("depth", scene.depth_paths)):
         for path in paths:
@@ -360,5 +414,5 @@ def _check_headers(scene: ReplicaScene) -> None:
                 )
             if kind == "depth" and mode not in ("I;16", "I;16B", "I;16L", "I"):
                 raise InputError(path, f"depth must be a 16-bit one-channel PNG, got mode {mode}")
-            if kind == "colour" and mode not in ("RGB", "L"):
+            if kind == "colour" and mode not in _COLOUR_MODES:
                 raise InputError(path, f"colour image has unsupported mode {mode}")

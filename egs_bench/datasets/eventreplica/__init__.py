@@ -1,4 +1,5 @@
-"""EventReplica generator: blurred E-RGB-D sequences from RGB-D + pose data in Replica layout.
+"""EventReplica generator: blurred E-RGB-D sequences from RGB-D + pose data (Replica, TUM RGB-D
+or a generic layout).
 
 Pipeline (paper §V.A, with an offline interpolator instead of FILM): read the scene
 (:mod:`egs_bench.datasets.replica`), decode sRGB to linear light, resize + centre-crop with
@@ -25,6 +26,7 @@ from egs_bench.datasets.eventreplica.interpolate import (
 from egs_bench.datasets.eventreplica.resize import ResizeCrop
 from egs_bench.datasets.eventreplica.source import ReplicaSource
 from egs_bench.datasets.replica import export_replica_layout, read_replica
+from egs_bench.datasets.rgbd_layouts import RGBDInput, read_generic_rgbd, read_tum_rgbd
 
 __all__ = [
     "INTERPOLATORS",
@@ -33,6 +35,7 @@ __all__ = [
     "FrameInterpolator",
     "KeyFrame",
     "PairInterpolator",
+    "RGBDInput",
     "ReplicaSource",
     "ResizeCrop",
     "exposure_windows",
@@ -40,5 +43,7 @@ __all__ = [
     "make_eventreplica",
     "make_eventreplica_scenes",
     "make_interpolator",
+    "read_generic_rgbd",
     "read_replica",
+    "read_tum_rgbd",
 ]

@@ -26,6 +26,7 @@ from egs_bench.datasets.eventreplica.resize import ResizeCrop
 from egs_bench.datasets.eventreplica.source import ReplicaSource
 from egs_bench.datasets.pipeline import SamplingConfig, generate_sequence
 from egs_bench.datasets.replica import read_replica
+from egs_bench.datasets.rgbd_layouts import RGBDInput
 from egs_bench.errors import ConfigError, InputError
 from egs_bench.outputs import prepare_output
 
@@ -47,7 +48,7 @@ def exposure_windows(
 
 
 def make_eventreplica(
-    input: str | Path,
+    input: str | Path | RGBDInput,
     out: str | Path,
     *,
     stride: int = 1,
@@ -70,7 +71,10 @@ def make_eventreplica(
     """Generate an EventReplica-style sequence (canonical format) from a Replica-layout scene.
 
     Args:
-        input: scene folder in NICE-SLAM Replica layout (see :mod:`egs_bench.datasets.replica`).
+        input: scene folder in NICE-SLAM Replica layout (see :mod:`egs_bench.datasets.replica`),
+            or an :class:`~egs_bench.datasets.rgbd_layouts.RGBDInput` naming a TUM RGB-D
+            folder or a generic image / depth / trajectory layout. Frames of every layout are
+            placed at ``j / fps``; a layout's own time stamps are recorded in ``meta.yaml``.
         out: output sequence folder (written atomically).
         stride: use every ``stride``-th original frame (larger = faster motion = more blur).
         fps: frame rate of the strided frames, Hz.
@@ -85,7 +89,8 @@ def make_eventreplica(
             :func:`~egs_bench.datasets.eventreplica.resize.auto_resize`); None = crop only.
         first: first original frame used.
         max_frames: cap on the number of strided frames read (output frames are one fewer).
-        cam_params: explicit ``cam_params.json`` (else auto-detected, else Replica defaults).
+        cam_params: explicit ``cam_params.json`` (else auto-detected, else Replica defaults);
+            Replica layout given as a folder only (an ``RGBDInput`` carries its own camera).
         sim: event simulator settings (default: thresholds 0.25, eps 1e-3, no noise).
         response: camera response (default: sRGB, gain 1, which reproduces the original frames).
         sampling: full sampling settings; overrides ``upsample``.
@@ -95,8 +100,16 @@ def make_eventreplica(
     Returns:
         The sequence folder.
     """
-    prepare_output(out, "sequence", overwrite=overwrite, inputs=[input, cam_params])
-    scene = read_replica(input, cam_params=cam_params)
+    if isinstance(input, RGBDInput):
+        if cam_params is not None:
+            raise ConfigError("give the camera file in the RGBDInput, not as cam_params")
+        spec = input
+    else:
+        spec = RGBDInput(layout="replica", path=Path(input),
+                         camera=None if cam_params is None else Path(cam_params))
+    inputs = spec.inputs()
+    prepare_output(out, "sequence", overwrite=overwrite, inputs=inputs)
+    scene = spec.open()
     if not (math.isfinite(fps) and fps > 0):
         raise ConfigError(f"fps must be positive, got {fps}")
     period_us = 1e6 / fps
@@ -125,6 +138,7 @@ def make_eventreplica(
         "source": f"EventReplica generator from {scene.path.resolve()}",
         "eventreplica": {
             "input": str(scene.path.resolve()),
+            "layout": scene.layout,
             "cam_params": None if scene.cam_params_path is None else str(scene.cam_params_path),
             "input_intrinsics": scene.intrinsics.to_dict(),
             "input_intrinsics_note": "egs-bench convention: Replica cx, cy + 0.5",
@@ -132,6 +146,10 @@ def make_eventreplica(
             "first": first,
             "fps_strided": fps,
             "original_frames": [int(source.frame_indices[i]) for i in ids],
+            **({} if scene.timestamps_s is None else {"original_timestamps_s": [
+                round(float(scene.timestamps_s[source.frame_indices[i]]), 6) for i in ids]}),
+            **({"distortion": list(scene.distortion)} if scene.distortion else {}),
+            **({"layout_record": scene.record} if scene.record else {}),
             "resize": list(source.geometry.resized_size(scene.intrinsics)),
             "resize_rule": resize if isinstance(resize, str) or resize is None else "explicit",
             "crop": [width, height],
@@ -146,7 +164,7 @@ def make_eventreplica(
     return generate_sequence(
         source, t_start, t_end, out, meta_extra=meta_extra, sim=sim,
         response=response or LdrResponse(), sampling=sampling, progress=progress,
-        overwrite=overwrite, inputs=[input, cam_params],
+        overwrite=overwrite, inputs=inputs,
     )
 
 
