@@ -66,6 +66,7 @@ import dataclasses
 import json
 import re
 import sys
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -443,6 +444,16 @@ def parse_constants(items: list[str]) -> CostConstants:
     return dataclasses.replace(CostConstants(), **changes)
 
 
+def exit_code_of(action: Callable[[], int]) -> int:
+    """``action()``'s exit code; an :class:`EgsBenchError` becomes one line on stderr (naming
+    the file or option) and its exit code, never a traceback."""
+    try:
+        return action()
+    except EgsBenchError as exc:
+        print(f"{Path(sys.argv[0]).name}: error: {exc}", file=sys.stderr)
+        return exc.exit_code
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--check", action="store_true",
@@ -466,7 +477,8 @@ def main(argv: list[str] | None = None) -> int:
         ap.error("give --check, --table, --fit or --run RUN")
     if args.tracking_iters_mean is not None and not args.tracking_iters_mean >= 0:
         ap.error("--tracking-iters-mean must be >= 0")
-    try:
+
+    def act() -> int:
         c = parse_constants(args.constant)
         if args.fit:
             fitted = fit_constants(args.measured)
@@ -496,10 +508,9 @@ def main(argv: list[str] | None = None) -> int:
                       f"({fps / measured - 1:+.1%}): {'ok' if ok else 'OFF by more than 25 %'}")
             if not all(ok for *_, ok in results):
                 return 1
-    except EgsBenchError as exc:
-        print(f"{Path(sys.argv[0]).name}: error: {exc}", file=sys.stderr)
-        return exc.exit_code
-    return 0
+        return 0
+
+    return exit_code_of(act)
 
 
 if __name__ == "__main__":

@@ -3,28 +3,14 @@ perturbed constant, the committed constants against a refit, and the work counte
 small run folder written here."""
 
 import dataclasses
-import importlib.util
 import json
-import sys
 from pathlib import Path
-from types import ModuleType
 
 import pytest
 import yaml
+from bench_scripts import load_script
 
-SCRIPT = Path(__file__).resolve().parents[2] / "benchmarks" / "gpu_cost_model.py"
-
-
-def _load() -> ModuleType:
-    spec = importlib.util.spec_from_file_location("gpu_cost_model", SCRIPT)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module  # dataclasses look their module up while being built
-    spec.loader.exec_module(module)
-    return module
-
-
-cm = _load()
+cm = load_script("gpu_cost_model")
 
 
 def test_check_passes_on_the_committed_measurements(capsys) -> None:
