@@ -22,7 +22,8 @@ pose per frame: ``monogs``). Every iteration measured so far has exactly one syn
 
 where a round's cameras are (window keyframes + random older ones, capped at views_per_iter)
 x cameras per view. Per-frame work outside the iterations (keyframe decisions, target
-preparation) is folded into the tracking iteration cost because the data cannot separate it.
+preparation) is folded into the tracking iteration cost because the data cannot separate it,
+so a prediction with fewer tracking iterations per frame is optimistic.
 
 Work counts (:func:`schedule_from_run`) come from a run folder written on any device, e.g. a
 short CPU run: ``config.yaml`` (segments, blur model, init / mapping iterations, window size,
