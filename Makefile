@@ -9,7 +9,7 @@ export EGS_BENCH_CACHE := $(CURDIR)/.cache/egs_bench
 export MPLBACKEND := Agg
 export OMP_WAIT_POLICY := PASSIVE
 
-.PHONY: setup demo test lint bench regress regress-baseline gpu-check clean
+.PHONY: setup demo test lint bench regress regress-baseline gpu-check gpu-accuracy clean
 
 setup: $(STAMP)
 
@@ -50,6 +50,17 @@ regress-baseline: setup
 gpu-check:
 	$(BIN)/pip install -q -c constraints.txt -e ".[cuda]"
 	PYTHON=$(BIN)/python bash benchmarks/gpu_check.sh
+
+# After `make gpu-check` on the same machine: the paper-budget accuracy table (egs, monogs, the
+# 448x256 built-ins, seeds 0-2), resumed from and appended to docs/notes/paper_budget_gpu_runs.csv,
+# stopping before UNTIL_S seconds. The gsplat build cache and architecture are gpu_check.sh's.
+UNTIL_S ?= 540
+gpu-accuracy:
+	TORCH_EXTENSIONS_DIR=$${TORCH_EXTENSIONS_DIR:-$(CURDIR)/.cache/torch_extensions} \
+	TORCH_CUDA_ARCH_LIST=$${TORCH_CUDA_ARCH_LIST:-$$($(BIN)/python -c \
+	  "import torch; m, n = torch.cuda.get_device_capability(); print(f'{m}.{n}')")} \
+	EGS_BENCH_DATA=$${EGS_BENCH_DATA:-$(CURDIR)/data} \
+	  $(BIN)/python benchmarks/gpu_accuracy.py --until-s $(UNTIL_S)
 
 clean:
 	rm -rf $(VENV) .cache demo_out .pytest_cache .ruff_cache

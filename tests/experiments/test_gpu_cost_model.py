@@ -1,0 +1,90 @@
+"""``benchmarks/gpu_cost_model.py``: the check on the committed H200 data, its failure with a
+perturbed constant, the committed constants against a refit, and the work counted from a
+small run folder written here."""
+
+import dataclasses
+import json
+from pathlib import Path
+
+import pytest
+import yaml
+from bench_scripts import load_script
+
+cm = load_script("gpu_cost_model")
+
+
+def test_check_passes_on_the_committed_measurements(capsys) -> None:
+    assert cm.main(["--check"]) == 0
+    out = capsys.readouterr().out
+    assert "egs: measured 0.37 FPS" in out and "monogs: measured 1.78 FPS" in out
+
+
+@pytest.mark.parametrize("constant", ["map_camera_blur_ms=3.5", "launch_ms=0.05"])
+def test_a_perturbed_constant_fails_the_check(constant: str, capsys) -> None:
+    assert cm.main(["--check", "--constant", constant]) == 1
+    assert "OFF by more than 25 %" in capsys.readouterr().out
+
+
+def test_committed_constants_are_the_fit_of_the_committed_data() -> None:
+    fitted = dataclasses.astuple(cm.fit_constants())
+    committed = dataclasses.astuple(cm.CostConstants())
+    assert fitted == pytest.approx(committed, rel=2e-3)
+    # 4 free parameters against 12 per-phase points, not 2 against the 2 FPS figures
+    a, y, _ = cm.fit_points()
+    assert a.shape == (12, 4) and len(y) == 12
+
+
+def _write_run(folder: Path, *, log: str | None) -> None:
+    folder.mkdir()
+    slam = {"method": {"blur_model": True}, "mapping": {"n_random_kfs": 1, "refine_iters": 7},
+            "budget": {"segments": 2, "window_size": 3, "views_per_iter": None,
+                       "init_iters": 40, "mapping_iters": 10, "tracking_iters": 5}}
+    (folder / "config.yaml").write_text(yaml.safe_dump({"method": "egs", "slam": slam}))
+    # frame 0's entry is the map initialisation's iteration count
+    (folder / "slam_stats.json").write_text(json.dumps(
+        {"tracking_iterations": [40] + [5, 3, 4, 5, 2, 5, 5, 1, 5, 5, 5, 5]}))
+    (folder / "keyframes.txt").write_text("0\n3\n6\n9\n12\n")
+    if log is not None:
+        (folder / "log.txt").write_text(log)
+
+
+def test_work_counted_from_a_run_folder(tmp_path: Path) -> None:
+    _write_run(tmp_path / "run", log="frame 3: keyframe\nframe 9: keyframe; window -[3]\n")
+    s = cm.schedule_from_run(tmp_path / "run")
+    assert s.family == "blur" and s.cameras_per_view == 3 and s.frames == 13
+    assert s.tracking_iters == (5, 3, 4, 5, 2, 5, 5, 1, 5, 5, 5, 5)
+    # windows 2, 3, 3 (one removed at frame 9, then 4 > window_size 3) plus a random older
+    # keyframe once one lies outside the window: views 2, 3, 4, 4, x 3 cameras each
+    assert s.mapping_cameras == (6, 9, 12, 12)
+    assert (s.init_iters, s.mapping_iters, s.refine_iters) == (40, 10, 7)
+    assert not s.concurrent
+
+    c = cm.CostConstants(launch_ms=0.0, track_camera_ms=1.0, map_camera_blur_ms=2.0,
+                         map_camera_plain_ms=99.0)
+    p = cm.predict(s, c)
+    assert p.init_s == pytest.approx(40 * 3 * 2.0 / 1e3)
+    assert p.tracking_s == pytest.approx(50 * 3 * 1.0 / 1e3)
+    assert p.mapping_s == pytest.approx((10 * (6 + 9 + 12 + 12) + 7 * 3) * 2.0 / 1e3)
+    assert p.total_s == pytest.approx(p.init_s + p.tracking_s + p.mapping_s)
+    overlapped = cm.predict(s.replace(concurrent=True), c)
+    assert overlapped.total_s == pytest.approx(p.init_s + max(p.tracking_s, p.mapping_s))
+    assert cm.converged(s, 2.5).tracking_iters.count(3) == 6  # 30 iterations over 12 frames
+
+
+def test_without_a_log_the_window_is_at_its_largest(tmp_path: Path) -> None:
+    _write_run(tmp_path / "run", log=None)
+    assert cm.schedule_from_run(tmp_path / "run").mapping_cameras == (6, 9, 12, 12)
+
+
+def test_a_run_folder_without_stats_is_one_line_naming_the_file(tmp_path: Path,
+                                                                 capsys) -> None:
+    _write_run(tmp_path / "run", log=None)
+    (tmp_path / "run" / "slam_stats.json").unlink()
+    assert cm.main(["--run", str(tmp_path / "run")]) == 3
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "slam_stats.json" in err[0] and "not found" in err[0]
+
+
+def test_a_bad_constant_is_a_usage_error(capsys) -> None:
+    assert cm.main(["--check", "--constant", "nope=1"]) == 2
+    assert "--constant" in capsys.readouterr().err
