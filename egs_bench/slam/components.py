@@ -5,7 +5,8 @@ the decisions inside it:
 
 * a :class:`Tracker` estimates each frame's exposure trajectory against the fixed map;
 * a :class:`MapOptimiser` builds the map on frame 0 and refines it on each keyframe window;
-* a :class:`KeyframePolicy` decides which frames become keyframes and which leave the window.
+* a :class:`KeyframePolicy` decides which frames become keyframes and which leave the window;
+* the loss terms (:mod:`egs_bench.slam.loss_terms`) that tracking and mapping minimise.
 
 :class:`SlamComponents` holds a factory for each, called once per run with the run's
 :class:`~egs_bench.slam.context.SlamContext`; its defaults are the built-in EGS-SLAM / MonoGS
@@ -27,6 +28,7 @@ from egs_bench.slam.context import SlamContext
 from egs_bench.slam.crf import CameraResponse
 from egs_bench.slam.frames import FrameObs, FrameState
 from egs_bench.slam.keyframes import KeyframeCandidate, MonoGSKeyframes
+from egs_bench.slam.loss_terms import LOSS_TERMS, LossTerm
 from egs_bench.slam.mapper import Mapper
 from egs_bench.slam.tracker import GradientTracker, TrackRequest, TrackResult
 
@@ -94,8 +96,11 @@ class SlamComponents:
         mapper: ``mapper(ctx, gmap, crf, rng) -> MapOptimiser``; ``rng`` is the run's seeded
             generator for random view choices.
         keyframes: ``keyframes(ctx) -> KeyframePolicy``.
+        loss_terms: the terms of the tracking and mapping loss, in the context
+            (:mod:`egs_bench.slam.loss_terms`).
     """
 
     tracker: TrackerFactory = GradientTracker
     mapper: MapperFactory = Mapper
     keyframes: KeyframePolicyFactory = monogs_keyframes
+    loss_terms: tuple[LossTerm, ...] = LOSS_TERMS

@@ -18,6 +18,7 @@ from egs_bench.render import GaussianMap
 from egs_bench.render.gaussian_map import FrozenGaussians
 from egs_bench.slam.config import SlamConfig
 from egs_bench.slam.frames import internal_intrinsics
+from egs_bench.slam.loss_terms import LOSS_TERMS, LossTerm
 from egs_bench.slam.render_model import render_views
 
 
@@ -35,6 +36,8 @@ class SlamContext:
         eps: the log offset of the event model, ``log(luma + eps)`` (the sequence's).
         exposure_starts_us, exposure_ends_us: every frame's exposure window, int64 [N]
             microseconds.
+        loss_terms: the terms of the tracking and mapping loss
+            (:mod:`egs_bench.slam.loss_terms`).
     """
 
     cfg: SlamConfig
@@ -45,10 +48,11 @@ class SlamContext:
     eps: float
     exposure_starts_us: np.ndarray
     exposure_ends_us: np.ndarray
+    loss_terms: tuple[LossTerm, ...] = LOSS_TERMS
 
     @classmethod
-    def build(cls, seq: Any, cfg: SlamConfig, device: str | torch.device = "cpu"
-              ) -> SlamContext:
+    def build(cls, seq: Any, cfg: SlamConfig, device: str | torch.device = "cpu",
+              loss_terms: tuple[LossTerm, ...] = LOSS_TERMS) -> SlamContext:
         """The context of running ``cfg`` on ``seq`` (an opened sequence, or a view of one
         with ``intrinsics``, ``exposure(i)``, ``eps``, the thresholds and ``len``)."""
         dev = torch.device(device)
@@ -60,7 +64,7 @@ class SlamContext:
         windows = np.array([seq.exposure(i) for i in range(len(seq))], dtype=np.int64)
         windows = windows.reshape(-1, 2)
         return cls(cfg, cam, torch.tensor(cam.K, dtype=torch.float32, device=dev), dev, theta,
-                   float(seq.eps), windows[:, 0].copy(), windows[:, 1].copy())
+                   float(seq.eps), windows[:, 0].copy(), windows[:, 1].copy(), loss_terms)
 
     @property
     def width(self) -> int:

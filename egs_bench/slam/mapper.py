@@ -83,7 +83,8 @@ class Mapper:
     def _targets(self, k: int, obs: FrameObs) -> LossTargets:
         if k not in self.targets:
             self.targets[k] = prepare_targets(obs, self.cfg, self.ctx.theta, tracking=False,
-                                              use_events=self.cfg.method.event_mapping)
+                                              use_events=self.cfg.method.event_mapping,
+                                              terms=self.ctx.loss_terms)
         return self.targets[k]
 
     def _pick_views(self, window: list[int], all_keyframes: list[int]) -> list[int]:

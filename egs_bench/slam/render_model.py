@@ -14,7 +14,6 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import NamedTuple
 
 import numpy as np
 import torch
@@ -24,88 +23,62 @@ from egs_bench.render import GaussianMap
 from egs_bench.render.gaussian_map import FrozenGaussians
 from egs_bench.slam.config import SlamConfig
 from egs_bench.slam.frames import FrameObs
-from egs_bench.slam.losses import isotropic_loss, rendered_event_maps
+from egs_bench.slam.loss_terms import (
+    EVENTS,
+    LOSS_TERMS,
+    LossTerm,
+    Prepared,
+    RenderedViews,
+    TermSetup,
+    event_residual,
+)
+from egs_bench.slam.losses import isotropic_loss
 
 
 @dataclass
 class LossTargets:
-    """Observations of V frames, prepared for :func:`blur_loss` (device tensors, float).
-
-    The loss weights and the 1 / (number of values) of each mean are folded into the masks
-    (``*_scale``), so the loss is a few weighted sums.
+    """Observations of V frames, prepared for :func:`blur_loss` by each loss term.
 
     Attributes:
-        rgb: observed LDR images [V, H, W, 3].
-        photo_weight: [V, H, W] MonoGS boundary mask (channel sum > threshold), times the
-            edge mask in tracking, times ``photo_scale``.
-        depth: observed depth [V, H, W] (m; 0 = invalid).
-        depth_mask: [V, H, W] ``depth_scale`` where the depth is valid, else 0.
-        event_target: [V, K, H, W] ``theta E_k`` (theta by the sign of the polarity sum E_k),
-            or None without event loss.
-        event_weight: [V, K, H, W] ``event_scale`` where ``E_k != 0`` (``L_HE``) and
-            ``lambda_NE event_scale`` where ``E_k = 0`` (``L_NE``, 0 without the no-event
-            loss), or None.
+        n_views: V.
+        terms: the loss terms (:mod:`egs_bench.slam.loss_terms`), in order.
+        prepared: by term name, the term's tensors for the V frames (first axis V); a term
+            that does not apply to these frames (events without events) is absent.
+        weights: by term name, its weight (for unweighted diagnostics).
         luma_weights: [3] BT.601 weights on the device (rendered luma = rgb @ weights).
-        photo_scale, depth_scale, event_scale: ``lambda_ID lambda_I / (3 H W)``,
-            ``lambda_ID lambda_D / (H W)``, ``lambda_E / (K H W)``.
     """
 
-    rgb: torch.Tensor
-    photo_weight: torch.Tensor
-    depth: torch.Tensor
-    depth_mask: torch.Tensor
-    event_target: torch.Tensor | None
-    event_weight: torch.Tensor | None
+    n_views: int
+    terms: tuple[LossTerm, ...]
+    prepared: dict[str, Prepared]
+    weights: dict[str, float]
     luma_weights: torch.Tensor
-    photo_scale: float
-    depth_scale: float
-    event_scale: float
-
-    @property
-    def n_views(self) -> int:
-        return int(self.rgb.shape[0])
 
 
 def prepare_targets(obs: FrameObs, cfg: SlamConfig, theta: tuple[float, float], *,
-                    tracking: bool, use_events: bool) -> LossTargets:
+                    tracking: bool, use_events: bool,
+                    terms: tuple[LossTerm, ...] = LOSS_TERMS) -> LossTargets:
     """:class:`LossTargets` of one frame (V = 1) for tracking or mapping."""
-    dtype = obs.rgb.dtype
-    h, w = obs.depth.shape
-    photo_scale = cfg.loss.lambda_id * cfg.loss.lambda_i / (3 * h * w)
-    depth_scale = cfg.loss.lambda_id * cfg.loss.lambda_d / (h * w)
-    weight = obs.rgb_mask.to(dtype) * photo_scale
-    if tracking and obs.edge_weight is not None:
-        weight = weight * obs.edge_weight.to(dtype)
-    target = event_weight = None
-    event_scale = 0.0
-    if use_events and obs.event_maps is not None and len(obs.fractions) > 1:
-        e = obs.event_maps.to(dtype)
-        event_scale = cfg.loss.lambda_e / e.numel()
-        target = torch.where(e > 0, theta[0] * e, theta[1] * e)
-        lam_ne = cfg.loss.lambda_ne if cfg.method.no_event_loss else 0.0
-        event_weight = torch.where(e != 0, torch.full_like(e, event_scale),
-                                   torch.full_like(e, lam_ne * event_scale))
-        target, event_weight = target[None], event_weight[None]
-    luma = torch.tensor(LUMA_BT601, dtype=dtype, device=obs.rgb.device)  # once per frame
-    return LossTargets(obs.rgb[None], weight[None], obs.depth[None],
-                       (obs.depth_mask.to(dtype) * depth_scale)[None], target, event_weight,
-                       luma, photo_scale, depth_scale, event_scale)
+    setup = TermSetup(cfg, theta, tracking, use_events)
+    weights = {t.name: float(t.weight(cfg)) for t in terms}
+    prepared = {}
+    for term in terms:
+        p = term.prepare(obs, setup, weights[term.name])
+        if p is not None:
+            prepared[term.name] = p
+    luma = torch.tensor(LUMA_BT601, dtype=obs.rgb.dtype, device=obs.rgb.device)  # once per frame
+    return LossTargets(1, terms, prepared, weights, luma)
 
 
 def stack_targets(targets: list[LossTargets]) -> LossTargets:
-    """Concatenate the views of several :class:`LossTargets` (events only if all have them)."""
-    def cat(parts: list[torch.Tensor | None]) -> torch.Tensor | None:
-        present = [p for p in parts if p is not None]
-        return torch.cat(present) if len(present) == len(parts) else None
+    """Concatenate the views of several :class:`LossTargets` (a term only where every one of
+    them has it)."""
     first = targets[0]
-    return LossTargets(torch.cat([t.rgb for t in targets]),
-                       torch.cat([t.photo_weight for t in targets]),
-                       torch.cat([t.depth for t in targets]),
-                       torch.cat([t.depth_mask for t in targets]),
-                       cat([t.event_target for t in targets]),
-                       cat([t.event_weight for t in targets]),
-                       first.luma_weights, first.photo_scale, first.depth_scale,
-                       first.event_scale)
+    common = [name for name in first.prepared if all(name in t.prepared for t in targets)]
+    prepared = {name: {key: torch.cat([t.prepared[name][key] for t in targets])
+                       for key in first.prepared[name]} for name in common}
+    return LossTargets(sum(t.n_views for t in targets), first.terms, prepared, first.weights,
+                       first.luma_weights)
 
 
 def render_views(gmap: GaussianMap | FrozenGaussians, viewmats: torch.Tensor | np.ndarray,
@@ -121,22 +94,24 @@ def render_views(gmap: GaussianMap | FrozenGaussians, viewmats: torch.Tensor | n
                        backend=cfg.runtime.backend, visibility=visibility)
 
 
-class _LossParts(NamedTuple):
-    """What :func:`blur_loss` and :func:`blur_loss_terms` share: the weighted total (scalar),
-    the per-frame photometric and depth sums ``l_i``, ``l_d`` [V] and the event residual
-    ``|theta E - predicted|`` [V, K, H, W] (None without events)."""
-
-    total: torch.Tensor
-    l_i: torch.Tensor
-    l_d: torch.Tensor
-    event_resid: torch.Tensor | None
+def _rendered(res, targets: LossTargets, crf: Callable[[torch.Tensor], torch.Tensor],
+              exp_ab: torch.Tensor | None, cfg: SlamConfig, *, tracking: bool,
+              eps: float) -> RenderedViews:
+    v = targets.n_views
+    c, h, w = res.rgb.shape[:3]
+    m = c // v
+    hdr = res.rgb.view(v, m, h, w, 3)
+    depth = (res.expected_depth if cfg.loss.expected_depth else res.depth).view(v, m, h, w)
+    return RenderedViews(hdr, respond(crf, hdr.mean(1), exp_ab),
+                         res.alpha.detach().view(v, m, h, w), depth, tracking, eps,
+                         targets.luma_weights)
 
 
 def blur_loss(res, targets: LossTargets, crf: Callable[[torch.Tensor], torch.Tensor],
               exp_ab: torch.Tensor | None, cfg: SlamConfig, *, tracking: bool,
               eps: float) -> torch.Tensor:
-    """Sum over the V frames of ``lambda_E L_E + lambda_ID (lambda_I L_I + lambda_D L_D)``
-    (a scalar tensor).
+    """Sum over the V frames and the loss terms (default: ``lambda_E L_E + lambda_ID
+    (lambda_I L_I + lambda_D L_D)``) (a scalar tensor).
 
     Args:
         res: RasterResult of V x M cameras, frame-major (M sub-poses of frame 0, then frame 1...).
@@ -151,59 +126,36 @@ def blur_loss(res, targets: LossTargets, crf: Callable[[torch.Tensor], torch.Ten
 
     Every mean runs over all pixels with masked pixels counting zero (MonoGS), per frame.
     """
-    return _loss_parts(res, targets, crf, exp_ab, cfg, tracking=tracking, eps=eps).total
+    views = _rendered(res, targets, crf, exp_ab, cfg, tracking=tracking, eps=eps)
+    values = [term.value(views, targets.prepared[term.name]).sum() for term in targets.terms
+              if term.name in targets.prepared]
+    return torch.stack(values).sum() if len(values) != 1 else values[0]
 
 
 def blur_loss_terms(res, targets: LossTargets, crf: Callable[[torch.Tensor], torch.Tensor],
                     exp_ab: torch.Tensor | None, cfg: SlamConfig, *, tracking: bool,
                     eps: float) -> dict[str, torch.Tensor]:
     """The terms of :func:`blur_loss` (same arguments), summed over frames, for diagnostics:
-    ``photometric`` L_I, ``depth`` L_D, ``event_he``, ``event_ne`` (unweighted; a term whose
-    weight is 0 is NaN) and the weighted ``total``. Costs a few more operations."""
-    parts = _loss_parts(res, targets, crf, exp_ab, cfg, tracking=tracking, eps=eps)
-    h, w = res.rgb.shape[1:3]
-    total = parts.total
-
-    def unscaled(value: torch.Tensor, weight: float) -> torch.Tensor:
-        return value / weight if weight else torch.full_like(value, float("nan"))
-    out = {"photometric": unscaled(parts.l_i.sum(), targets.photo_scale * 3 * h * w),
-           "depth": unscaled(parts.l_d.sum(), targets.depth_scale * h * w),
-           "event_he": total.new_zeros(()), "event_ne": total.new_zeros(()), "total": total}
-    if parts.event_resid is not None and targets.event_target is not None:
-        resid = parts.event_resid
-        has = (targets.event_target != 0).to(resid.dtype)
+    each term unweighted by its name (``photometric`` L_I, ``depth`` L_D, ``events``; a term
+    whose weight is 0 is NaN), the event term's parts ``event_he`` and ``event_ne`` (means over
+    pixels with and without events; 0 without events) and the weighted ``total``."""
+    views = _rendered(res, targets, crf, exp_ab, cfg, tracking=tracking, eps=eps)
+    total = blur_loss(res, targets, crf, exp_ab, cfg, tracking=tracking, eps=eps)
+    out = {"event_he": total.new_zeros(()), "event_ne": total.new_zeros(()), "total": total}
+    for term in targets.terms:
+        weight = targets.weights[term.name]
+        if term.name not in targets.prepared:
+            out[term.name] = total.new_zeros(())
+            continue
+        value = term.value(views, targets.prepared[term.name]).sum()
+        out[term.name] = value / weight if weight else torch.full_like(value, float("nan"))
+    events = targets.prepared.get(EVENTS.name)
+    if events is not None:
+        resid = event_residual(views, events)
+        has = (events["target"] != 0).to(resid.dtype)
         out["event_he"] = (has * resid).mean((1, 2, 3)).sum()
         out["event_ne"] = ((1 - has) * resid).mean((1, 2, 3)).sum()
     return out
-
-
-def _loss_parts(res, targets: LossTargets, crf: Callable[[torch.Tensor], torch.Tensor],
-                exp_ab: torch.Tensor | None, cfg: SlamConfig, *, tracking: bool,
-                eps: float) -> _LossParts:
-    v = targets.n_views
-    c, h, w = res.rgb.shape[:3]
-    m = c // v
-    hdr = res.rgb.view(v, m, h, w, 3)
-    ldr = respond(crf, hdr.mean(1), exp_ab)
-    alpha = res.alpha.detach().view(v, m, h, w)
-    weight = targets.photo_weight
-    depth_mask = targets.depth_mask[:, None]
-    if tracking:
-        weight = weight * alpha.mean(1)
-        depth_mask = depth_mask * (alpha > 0.95)
-    l_i = (weight[..., None] * (ldr - targets.rgb).abs()).sum((1, 2, 3))  # [V]
-    depth = (res.expected_depth if cfg.loss.expected_depth else res.depth).view(v, m, h, w)
-    l_d = (depth_mask * (depth - targets.depth[:, None]).abs()).sum((2, 3)).amin(1)  # [V]
-    total = (l_i + l_d).sum()
-    resid = None
-    event_target, event_weight = targets.event_target, targets.event_weight
-    if event_target is not None and event_weight is not None and m > 1:
-        pred = rendered_event_maps(hdr, eps, targets.luma_weights)  # [V, K, H, W]
-        resid = (event_target - pred).abs()
-        if tracking:
-            resid = resid * (alpha > 0.5).all(1, keepdim=True)
-        total = total + (event_weight * resid).sum()
-    return _LossParts(total, l_i, l_d, resid)
 
 
 def respond(crf: Callable[[torch.Tensor], torch.Tensor], hdr: torch.Tensor,

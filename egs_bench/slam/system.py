@@ -75,7 +75,8 @@ class SlamSystem:
                  log: Callable[[str], None] | None = None,
                  components: SlamComponents | None = None) -> None:
         self.seq, self.cfg = seq, cfg
-        self.ctx = SlamContext.build(seq, cfg, device)
+        parts = components or SlamComponents()
+        self.ctx = SlamContext.build(seq, cfg, device, parts.loss_terms)
         self.device = self.ctx.device
         self.log = log or (lambda _m: None)
         self.gen = torch.Generator().manual_seed(seed)  # insertion subsampling
@@ -88,7 +89,6 @@ class SlamSystem:
         self.want_events = cfg.method.event_tracking or cfg.method.event_mapping
         if self.want_events and not getattr(seq, "has_events", True):
             self.log("sequence has no events: event losses see empty event maps")
-        parts = components or SlamComponents()
         self.tracker = parts.tracker(self.ctx)
         self.mapper = parts.mapper(self.ctx, self.gmap, self.crf, self.rng)
         self.keyframe_policy = parts.keyframes(self.ctx)

@@ -108,10 +108,10 @@ def track_frame(ctx: SlamContext, gmap: GaussianMap, crf: CameraResponse,
     decay = cfg.budget.tracking_lr_final ** (1.0 / max(n_iters - 1, 1))
     adam = HostAdam(lr, decay)
     targets = prepare_targets(obs, cfg, ctx.theta, tracking=True,
-                              use_events=cfg.method.event_tracking)
+                              use_events=cfg.method.event_tracking, terms=ctx.loss_terms)
     curve = crf.frozen()
     scene = gmap.frozen()  # the map is fixed while tracking: activate it once
-    like = targets.rgb
+    like = obs.rgb  # dtype and device of the copies
     m = len(fractions)
     loss_val, it, converged = math.inf, 0, False
     for step_i in range(1, n_iters + 1):
