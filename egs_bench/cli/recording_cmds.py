@@ -60,12 +60,16 @@ def import_recording_cmd(
     max_frames: int | None = typer.Option(None, "--max-frames", min=1,
                                           help="Import at most this many frames."),
     name: str | None = typer.Option(None, "--name", help="Sequence name (default: folder name)."),
+    sensor: list[str] = typer.Option([], "--sensor",
+                                     help="STREAM=NAME for meta.yaml (events, frames, depth, "
+                                          "groundtruth), e.g. depth='Azure Kinect'; repeatable."),
     overwrite: bool = typer.Option(False, "--overwrite",
                                    help="Replace an existing sequence folder."),
     progress: bool = typer.Option(True, "--progress/--no-progress"),
 ) -> None:
     """Import a real event + RGB-D + mocap recording as a sequence folder (ATE-only scoring)."""
     from egs_bench.recordings import RecordingSpec, import_recording
+    from egs_bench.recordings.importer import parse_sensor_names
 
     spec = RecordingSpec(
         events=events, depth=depth, gt=gt, calib=calib, frames=frames, events_topic=events_topic,
@@ -74,7 +78,7 @@ def import_recording_cmd(
         depth_times=depth_times, frame_stamp=frame_stamp, exposure_us=exposure_us,
         times_unit=times_unit, max_depth_dt_us=int(round(max_depth_dt_ms * 1000)),
         max_gt_gap_us=int(round(max_gt_gap_ms * 1000)), first_frame=first_frame,
-        max_frames=max_frames, name=name, preset=preset,
+        max_frames=max_frames, name=name, preset=preset, sensors=parse_sensor_names(sensor),
     )  # fmt: skip
     path = import_recording(spec, out, overwrite=overwrite, progress=progress)
     Console().print(f"wrote {path}")
