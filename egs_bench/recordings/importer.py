@@ -227,12 +227,6 @@ def _open_inputs(spec: RecordingSpec) -> _Inputs:
         on_event = calib.depth_on_event_grid
         calib = replace(calib, event_camera=cam, depth_camera=cam if on_event
                         else calib.depth_camera)
-    cam = calib.event_camera
-    if cam is None:
-        raise calib.error("no event_camera")
-    if (events.width, events.height) != (cam.width, cam.height):
-        raise calib.error(f"event_camera is {cam.width}x{cam.height} but {events.label} "
-                          f"declares a {events.width}x{events.height} sensor")
     # frames
     frames_path = spec.frames or spec.events
     kind = _kind(frames_path, "frames")
@@ -248,15 +242,8 @@ def _open_inputs(spec: RecordingSpec) -> _Inputs:
                                       spec.frame_stamp or "mid", spec.exposure_us)
     else:
         raise InputError(frames_path, "frames must come from an .aedat4 file, a bag or a folder")
-    frame_cam = calib.frame_camera or cam
-    if (frames.width, frames.height) != (frame_cam.width, frame_cam.height):
-        which = "frame_camera" if calib.frame_camera else "event_camera (frames come from the " \
-                                                          "event sensor)"
-        raise calib.error(f"{which} is {frame_cam.width}x{frame_cam.height} but the frames in "
-                          f"{frames.label} are {frames.width}x{frames.height}")
     # depth
-    dcam = calib.depth_camera
-    if dcam is None:
+    if calib.depth_camera is None:
         raise calib.error("no depth_camera (a camera, or `event` when depth is on the event "
                           "camera's grid)")
     kind = _kind(spec.depth, "depth")
@@ -265,17 +252,10 @@ def _open_inputs(spec: RecordingSpec) -> _Inputs:
     elif kind == "folder":
         if spec.depth_times is None:
             raise InputError(spec.depth, "a depth folder needs a times file (--depth-times)")
-        _require_depth_scale(calib, spec.depth)
-        assert calib.depth_scale is not None
         depth = folders.depth_folder(spec.depth, spec.depth_times, spec.times_unit,
-                                     calib.depth_scale)
+                                     require_depth_scale(calib, spec.depth))
     else:
         raise InputError(spec.depth, "depth must come from a ROS1 bag or a folder of PNGs")
-    if depth.integer_units:
-        _require_depth_scale(calib, Path(depth.label))
-    if (depth.width, depth.height) != (dcam.width, dcam.height):
-        raise calib.error(f"depth_camera is {dcam.width}x{dcam.height} but the depth maps in "
-                          f"{depth.label} are {depth.width}x{depth.height}")
     # ground truth
     kind = _kind(spec.gt, "ground truth")
     if kind == "bag":
@@ -284,15 +264,49 @@ def _open_inputs(spec: RecordingSpec) -> _Inputs:
         gt = folders.tum_track(spec.gt)
     else:
         raise InputError(spec.gt, "ground truth must be a TUM file or a ROS1 bag")
+    return checked_inputs(calib, events, frames, depth, gt)
+
+
+def checked_inputs(calib: RecordingCalib, events: EventSource, frames: FrameStream,
+                   depth: DepthStream, gt: PoseTrack) -> _Inputs:
+    """The opened streams with their calibration, once the sizes agree and the depth has
+    the scale it needs.
+
+    Raises:
+        InputError: naming the calibration file (a missing camera or depth_scale, a camera
+            whose size differs from its stream's).
+    """
+    cam = calib.event_camera
+    if cam is None:
+        raise calib.error("no event_camera")
+    if (events.width, events.height) != (cam.width, cam.height):
+        raise calib.error(f"event_camera is {cam.width}x{cam.height} but {events.label} "
+                          f"declares a {events.width}x{events.height} sensor")
+    frame_cam = calib.frame_camera or cam
+    if (frames.width, frames.height) != (frame_cam.width, frame_cam.height):
+        which = "frame_camera" if calib.frame_camera else "event_camera (frames come from the " \
+                                                          "event sensor)"
+        raise calib.error(f"{which} is {frame_cam.width}x{frame_cam.height} but the frames in "
+                          f"{frames.label} are {frames.width}x{frames.height}")
+    dcam = calib.depth_camera
+    if dcam is None:
+        raise calib.error("no depth_camera (a camera, or `event` when depth is on the event "
+                          "camera's grid)")
+    if depth.integer_units:
+        require_depth_scale(calib, Path(depth.label))
+    if (depth.width, depth.height) != (dcam.width, dcam.height):
+        raise calib.error(f"depth_camera is {dcam.width}x{dcam.height} but the depth maps in "
+                          f"{depth.label} are {depth.width}x{depth.height}")
     return _Inputs(calib, cam, dcam, events, frames, depth, gt)
 
 
-def _require_depth_scale(calib: RecordingCalib, source: Path) -> None:
-    """16-bit depth without ``depth_scale`` is refused: a guessed scale (RealSense's 1000 is
+def require_depth_scale(calib: RecordingCalib, source: Path) -> float:
+    """``calib.depth_scale``, which 16-bit depth needs: a guessed scale (RealSense's 1000 is
     TUM's 5000 elsewhere) would scale the whole map without a word."""
     if calib.depth_scale is None:
         raise calib.error(f"missing depth_scale: the depth maps in {source} are 16-bit "
                           "integers (give units per metre, e.g. 1000 for millimetres)")
+    return calib.depth_scale
 
 
 # ------------------------------------------------------------------------------------------
@@ -457,14 +471,23 @@ def import_recording(spec: RecordingSpec, out: str | Path, *, overwrite: bool = 
             names the file; nothing is written.
         ConfigError: inconsistent options.
     """
-    from egs_bench.datasets.sequence import Sequence, SequenceWriter
-
     out = Path(out)
     prepare_output(out, "sequence", overwrite=overwrite,
                    inputs=[spec.events, spec.frames, spec.depth, spec.gt, spec.calib,
                            spec.frame_times, spec.depth_times])
     spec = apply_preset(spec)
-    inp = _open_inputs(spec)
+    return write_sequence(_open_inputs(spec), spec, out, overwrite=overwrite, progress=progress)
+
+
+def write_sequence(inp: _Inputs, spec: RecordingSpec, out: Path, *, overwrite: bool,
+                   progress: bool, generator: str = "egs-bench import-recording",
+                   layout: dict[str, Any] | None = None) -> Path:
+    """Write the opened inputs as the sequence folder ``out`` (atomically; ``out`` already
+    cleared by ``prepare_output``). ``spec`` gives the frame range, tolerances, names and
+    conventions; ``layout`` is recorded as ``recording.layout`` (a dataset importer's own
+    conventions)."""
+    from egs_bench.datasets.sequence import Sequence, SequenceWriter
+
     plan = _plan(inp, spec)
     calib = inp.calib
     cam = inp.event_camera
@@ -476,7 +499,7 @@ def import_recording(spec: RecordingSpec, out: str | Path, *, overwrite: bool = 
     on_frame_sensor = frame_cam is None
     name = spec.name or out.name
     meta: dict[str, Any] = {
-        "name": name, "source": "real", "generator": "egs-bench import-recording",
+        "name": name, "source": "real", "generator": generator,
         "generator_version": __version__,
         "width": pinhole.width, "height": pinhole.height, "fx": pinhole.fx, "fy": pinhole.fy,
         "cx": pinhole.cx, "cy": pinhole.cy,
@@ -531,6 +554,7 @@ def import_recording(spec: RecordingSpec, out: str | Path, *, overwrite: bool = 
                        "depth": inp.depth.label, "groundtruth": inp.gt.label,
                        "calib": str(spec.calib)},
             "frame_stamp": spec.frame_stamp,
+            **({"layout": layout} if layout is not None else {}),
             "calib": calib.to_dict(),
             "frames": {"in_recording": len(inp.frames), "imported": len(plan.frames),
                        "first_index": int(plan.frames[0]), "dropped": plan.dropped},

@@ -19,6 +19,7 @@ from rig import (
     SCENE,
     T0_US,
     Rig,
+    assert_events_match,
     calib_dict,
     event_camera_dict,
     make_rig,
@@ -72,12 +73,7 @@ def test_rig_events_frames_and_times_are_exact(rig: Rig, imported: Path) -> None
     for i in range(len(seq)):
         np.testing.assert_array_equal(seq.rgb(i), truth.rgb(i))
         assert seq.sharp(i) is None
-    a = seq.events.window(int(seq.t_start_us[0]), int(seq.t_end_us[-1]) + 1)
-    b = truth.events.window(int(truth.t_start_us[0]), int(truth.t_end_us[-1]) + 1)
-    assert len(a) == len(b) > 1000
-    np.testing.assert_array_equal(a.t, b.t + T0_US)
-    for k in "xyp":
-        np.testing.assert_array_equal(getattr(a, k), getattr(b, k))
+    assert_events_match(seq, truth)
 
 
 def test_rig_poses_from_mocap_hand_eye_and_time_offset(rig: Rig, imported: Path) -> None:
