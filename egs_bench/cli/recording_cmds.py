@@ -1,4 +1,5 @@
-"""CLI commands for real recordings: ``import-recording``, ``make-calib``, ``recording-presets``."""
+"""CLI commands for real recordings: ``import-recording``, ``import-enslam``, ``make-calib``,
+``recording-presets``."""
 
 from __future__ import annotations
 
@@ -60,12 +61,16 @@ def import_recording_cmd(
     max_frames: int | None = typer.Option(None, "--max-frames", min=1,
                                           help="Import at most this many frames."),
     name: str | None = typer.Option(None, "--name", help="Sequence name (default: folder name)."),
+    sensor: list[str] = typer.Option([], "--sensor",
+                                     help="STREAM=NAME for meta.yaml (events, frames, depth, "
+                                          "groundtruth), e.g. depth='Azure Kinect'; repeatable."),
     overwrite: bool = typer.Option(False, "--overwrite",
                                    help="Replace an existing sequence folder."),
     progress: bool = typer.Option(True, "--progress/--no-progress"),
 ) -> None:
     """Import a real event + RGB-D + mocap recording as a sequence folder (ATE-only scoring)."""
     from egs_bench.recordings import RecordingSpec, import_recording
+    from egs_bench.recordings.importer import parse_sensor_names
 
     spec = RecordingSpec(
         events=events, depth=depth, gt=gt, calib=calib, frames=frames, events_topic=events_topic,
@@ -74,7 +79,7 @@ def import_recording_cmd(
         depth_times=depth_times, frame_stamp=frame_stamp, exposure_us=exposure_us,
         times_unit=times_unit, max_depth_dt_us=int(round(max_depth_dt_ms * 1000)),
         max_gt_gap_us=int(round(max_gt_gap_ms * 1000)), first_frame=first_frame,
-        max_frames=max_frames, name=name, preset=preset,
+        max_frames=max_frames, name=name, preset=preset, sensors=parse_sensor_names(sensor),
     )  # fmt: skip
     path = import_recording(spec, out, overwrite=overwrite, progress=progress)
     Console().print(f"wrote {path}")
@@ -121,3 +126,47 @@ def recording_presets_cmd() -> None:
             console.print(f"  download: {d}")
         for n in p.notes:
             console.print(f"  note: {n}")
+
+
+@app.command("import-enslam")
+def import_enslam_cmd(
+    input_dir: Path = typer.Option(..., "--input", help="A DEV-Reals sequence folder (rgbd/, "
+                                   "davis346/, pose/), as EN-SLAM's toolkit extracts it."),
+    out: Path = typer.Option(..., "--out", "-o", help="Sequence folder to write (must not exist)."),
+    calib: Path = typer.Option(..., "--calib", help="calib.yaml: RealSense colour camera as "
+                               "depth_camera (and frame_camera), depth_scale, extrinsics, "
+                               "offsets; event_camera defaults to davis346/intrinsic."),
+    exposure_us: int = typer.Option(..., "--exposure-us", min=1,
+                                    help="Exposure time of the frames (the layout has none)."),
+    frame_stamp: str = typer.Option(..., "--frame-stamp",
+                                    help="What a frame's stamp marks: start, mid or end."),
+    frames: str = typer.Option("rgbd", "--frames", help="rgbd (RealSense colour, EN-SLAM's "
+                               "input) or davis (DAVIS346 APS frames)."),
+    max_depth_dt_ms: float = typer.Option(15.0, "--max-depth-dt-ms",
+                                          help="Largest time between an exposure end and the "
+                                               "depth map used for it."),
+    max_gt_gap_ms: float = typer.Option(50.0, "--max-gt-gap-ms",
+                                        help="Largest gap between the poses around an "
+                                             "exposure end."),
+    first_frame: int = typer.Option(0, "--first-frame", min=0,
+                                    help="Skip this many usable frames."),
+    max_frames: int | None = typer.Option(None, "--max-frames", min=1,
+                                          help="Import at most this many frames."),
+    name: str | None = typer.Option(None, "--name", help="Sequence name (default: folder name)."),
+    sensor: list[str] = typer.Option([], "--sensor", help="STREAM=NAME for meta.yaml; "
+                                     "repeatable."),
+    overwrite: bool = typer.Option(False, "--overwrite",
+                                   help="Replace an existing sequence folder."),
+    progress: bool = typer.Option(True, "--progress/--no-progress"),
+) -> None:
+    """Import an EN-SLAM DEV-Reals sequence (events + RGB-D + poses) as a sequence folder."""
+    from egs_bench.recordings.enslam import import_enslam
+    from egs_bench.recordings.importer import parse_sensor_names
+
+    path = import_enslam(
+        input_dir, out, calib=calib, exposure_us=exposure_us, frame_stamp=frame_stamp,
+        frames=frames, max_depth_dt_us=int(round(max_depth_dt_ms * 1000)),
+        max_gt_gap_us=int(round(max_gt_gap_ms * 1000)), first_frame=first_frame,
+        max_frames=max_frames, name=name, sensors=parse_sensor_names(sensor),
+        overwrite=overwrite, progress=progress)
+    Console().print(f"wrote {path}")

@@ -64,6 +64,7 @@ class Aedat4File:
         self._event_id, info = events[0]
         self.width, self.height = int(info["width"]), int(info["height"])
         self._frame_id = frames[0][0] if frames else None
+        self._sources = _stream_sources(self.path)
 
     # ------------------------------------------------------------------ events
     def _event_batches(self) -> Iterator[Events]:
@@ -76,7 +77,8 @@ class Aedat4File:
 
     def events(self) -> EventSource:
         """The event stream (polarity ``on`` -> +1)."""
-        return EventSource(str(self.path), self.width, self.height, self._event_batches)
+        return EventSource(str(self.path), self.width, self.height, self._event_batches,
+                           sensor=self._sources.get(self._event_id))
 
     # ------------------------------------------------------------------ frames
     def _frame_packets(self) -> Iterator[dict]:
@@ -107,4 +109,36 @@ class Aedat4File:
                         raise InputError(self.path, f"frame {i}: {exc}") from None
 
         return FrameStream(f"{self.path} (frames)", np.asarray(t0, np.int64),
-                           np.asarray(t1, np.int64), size[0], size[1], load)
+                           np.asarray(t1, np.int64), size[0], size[1], load,
+                           sensor=self._sources.get(self._frame_id))
+
+
+#: the header's XML ends within this many bytes in DV's files (a few kB); read no further
+HEADER_SCAN_BYTES = 1 << 20
+
+
+def _stream_sources(path: Path) -> dict[int, str]:
+    """Stream id -> the ``source`` the DV header names for it (camera model and serial, e.g.
+    ``DAVIS346_00000104``). The ``aedat`` decoder does not expose it; the header's info node
+    is plain XML (``<dv>`` ... ``</dv>``) inside the IOHeader. ``{}`` when absent."""
+    import xml.etree.ElementTree as ET
+
+    with path.open("rb") as handle:
+        head = handle.read(HEADER_SCAN_BYTES)
+    start, end = head.find(b"<dv"), head.find(b"</dv>")
+    if start < 0 or end < 0:
+        return {}
+    try:
+        root = ET.fromstring(head[start:end + len(b"</dv>")].decode("utf-8"))
+    except (ET.ParseError, UnicodeDecodeError):
+        return {}  # the name is a label only: a header the decoder accepted still imports
+    sources = {}
+    for out in root.iter("node"):
+        if out.get("name") != "outInfo":
+            continue
+        for stream in out.findall("node"):
+            name = stream.get("name", "")
+            attr = stream.find(".//attr[@key='source']")
+            if name.isdigit() and attr is not None and attr.text:
+                sources[int(name)] = attr.text.strip()
+    return sources

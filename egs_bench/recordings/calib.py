@@ -26,6 +26,13 @@ time_offsets_us:           # added to a sensor's stamps to put them on the event
   frames: 0
   mocap: 0
 ```
+
+Nothing that changes the imported data has a default: ``T_body_event``, ``time_offsets_us.depth``
+and ``time_offsets_us.mocap`` are always required, ``T_event_depth`` with a depth camera (it must
+be absent or the identity with ``depth_camera: event``), ``T_event_frame`` and
+``time_offsets_us.frames`` with a frame camera, and ``depth_scale`` whenever the depth maps are
+16-bit integers (the importer checks that, since only the data says so). Write the identity or
+0 explicitly where it is the true value; ``egs-bench make-calib`` writes every key.
 """
 
 from __future__ import annotations
@@ -51,7 +58,8 @@ class RecordingCalib:
     Attributes:
         event_camera: the camera whose pixel grid the imported sequence uses.
         depth_camera: the depth sensor's camera (may be the event camera itself).
-        depth_scale: 16-bit depth units per metre.
+        depth_scale: 16-bit depth units per metre; ``None`` when the file gives none (float
+            depth in metres needs none; the importer refuses 16-bit depth without it).
         frame_camera: the camera of the frames, ``None`` when they come from the event sensor.
         T_event_depth, T_event_frame, T_body_event: [4, 4] float64 (see module docstring).
         time_offsets_us: ``depth``, ``frames``, ``mocap`` offsets in microseconds.
@@ -60,7 +68,7 @@ class RecordingCalib:
 
     event_camera: CameraModel | None
     depth_camera: CameraModel | None = None
-    depth_scale: float = 1000.0
+    depth_scale: float | None = None
     frame_camera: CameraModel | None = None
     T_event_depth: np.ndarray = field(default_factory=lambda: np.eye(4))  # noqa: N815
     T_event_frame: np.ndarray = field(default_factory=lambda: np.eye(4))  # noqa: N815
@@ -75,6 +83,7 @@ class RecordingCalib:
         return str(self.path) if self.path is not None else "calibration"
 
     def error(self, problem: str) -> InputError:
+        """An :class:`InputError` naming this calibration's file."""
         return InputError(self.path or Path("calib.yaml"), problem)
 
     def to_dict(self) -> dict[str, Any]:
@@ -162,7 +171,7 @@ def load_calib(path: str | Path) -> RecordingCalib:
         if raw.get("event_camera") is not None else None
     depth_raw = raw.get("depth_camera")
     on_event = depth_raw == "event"
-    depth_scale = raw.get("depth_scale", 1000.0)
+    depth_scale = raw.get("depth_scale")
     if on_event:
         depth = event
     elif depth_raw is None:
@@ -170,33 +179,68 @@ def load_calib(path: str | Path) -> RecordingCalib:
     else:
         depth = _camera(path, "depth_camera", depth_raw)
         depth_scale = depth_raw.get("depth_scale", depth_scale)
-    if not isinstance(depth_scale, int | float) or not depth_scale > 0:
+    if depth_scale is not None and (not isinstance(depth_scale, int | float)
+                                    or not depth_scale > 0):
         raise InputError(path, f"depth_scale must be a positive number, got {depth_scale!r}")
     frame = _camera(path, "frame_camera", raw["frame_camera"]) \
         if raw.get("frame_camera") is not None else None
-    offsets_raw = raw.get("time_offsets_us") or {}
-    if not isinstance(offsets_raw, dict):
+    offsets = _offsets(path, raw.get("time_offsets_us"), with_frames=frame is not None)
+    if raw.get("T_event_frame") is not None and frame is None:
+        raise InputError(path, "T_event_frame given without frame_camera")
+    T_event_depth = _required_transform(  # noqa: N806
+        path, raw, "T_event_depth", depth is not None and not on_event,
+        "depth camera -> event camera")
+    if on_event and not np.allclose(T_event_depth, np.eye(4)):
+        raise InputError(path, "depth_camera: event puts depth on the event camera's grid, so "
+                               "T_event_depth must be absent or the identity")
+    return RecordingCalib(
+        event_camera=event, depth_camera=depth,
+        depth_scale=None if depth_scale is None else float(depth_scale), frame_camera=frame,
+        T_event_depth=T_event_depth,
+        T_event_frame=_required_transform(path, raw, "T_event_frame", frame is not None,
+                                          "frame camera -> event camera"),
+        T_body_event=_required_transform(path, raw, "T_body_event", True,
+                                         "event camera -> mocap body; the identity when the "
+                                         "poses are the event camera's"),
+        time_offsets_us=offsets, path=path, depth_on_event_grid=on_event,
+    )
+
+
+def _required_transform(path: Path, raw: dict, key: str, required: bool,
+                        meaning: str) -> np.ndarray:
+    """``raw[key]`` as a checked 4x4 transform; a missing required one is an error (an
+    identity guessed here would move every pose or depth value without a word)."""
+    if raw.get(key) is None:
+        if required:
+            raise InputError(path, f"missing {key} ({meaning}): write the 4x4 matrix, the "
+                                   "identity if that is the true value")
+        return np.eye(4)
+    return _transform(path, key, raw[key])
+
+
+def _offsets(path: Path, raw: Any, with_frames: bool) -> dict[str, int]:
+    """``time_offsets_us`` -> ``{depth, frames, mocap}`` microseconds. ``depth`` and ``mocap``
+    are required, ``frames`` only with a frame camera (frames from the event sensor share its
+    clock, offset 0)."""
+    if raw is None:
+        raw = {}
+    if not isinstance(raw, dict):
         raise InputError(path, "time_offsets_us must be a mapping with depth, frames, mocap")
-    bad = sorted(set(offsets_raw) - {"depth", "frames", "mocap"})
+    bad = sorted(set(raw) - {"depth", "frames", "mocap"})
     if bad:
         raise InputError(path, f"time_offsets_us: unknown keys {', '.join(bad)} "
                                "(depth, frames, mocap)")
     offsets = {}
     for key in ("depth", "frames", "mocap"):
-        value = offsets_raw.get(key, 0)
-        if not isinstance(value, int | float) or not np.isfinite(value):
+        if key not in raw and (key != "frames" or with_frames):
+            raise InputError(path, f"missing time_offsets_us.{key} (microseconds added to that "
+                                   "sensor's stamps; 0 if it shares the event camera's clock)")
+        value = raw.get(key, 0)
+        if not isinstance(value, int | float) or isinstance(value, bool) \
+                or not np.isfinite(value):
             raise InputError(path, f"time_offsets_us.{key} must be a number of microseconds")
         offsets[key] = int(round(value))
-    if raw.get("T_event_frame") is not None and frame is None:
-        raise InputError(path, "T_event_frame given without frame_camera")
-    return RecordingCalib(
-        event_camera=event, depth_camera=depth, depth_scale=float(depth_scale),
-        frame_camera=frame,
-        T_event_depth=_transform(path, "T_event_depth", raw.get("T_event_depth")),
-        T_event_frame=_transform(path, "T_event_frame", raw.get("T_event_frame")),
-        T_body_event=_transform(path, "T_body_event", raw.get("T_body_event")),
-        time_offsets_us=offsets, path=path, depth_on_event_grid=on_event,
-    )
+    return offsets
 
 
 def dump_calib(calib: RecordingCalib) -> str:
@@ -283,7 +327,8 @@ def write_calib_template(out: str | Path, *, kalibr: str | Path | None = None,
         event = CameraModel(346, 260, 250.0, 250.0, 172.5, 129.5, "radtan", (0.0, 0.0, 0.0, 0.0))
     depth = None if depth_on_event else \
         CameraModel(640, 480, 385.0, 385.0, 319.5, 239.5)  # placeholders: a D435 at 640x480
+    # depth_scale 1000: the RealSense / Azure Kinect millimetres, a value to check like the rest
     calib = RecordingCalib(event_camera=event, depth_camera=event if depth_on_event else depth,
-                           depth_on_event_grid=depth_on_event)
+                           depth_scale=1000.0, depth_on_event_grid=depth_on_event)
     write_text_atomic(out, dump_calib(calib))
     return out

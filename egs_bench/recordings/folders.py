@@ -80,6 +80,13 @@ def frame_folder(folder: Path, times: Path, unit: str, stamp: str,
                                 "time marks: start, mid or end)")
     else:
         t0, t1 = exposure_windows(t[:, 0], int(exposure_us), stamp)
+    return image_frames(str(folder), files, t0, t1)
+
+
+def image_frames(label: str, files: list[Path], t_start_us: np.ndarray, t_end_us: np.ndarray
+                 ) -> FrameStream:
+    """Frames from image files and their exposure windows ([N] int64 us each); every image
+    must have the first one's size."""
     first = read_ldr_image(files[0])
     h, w = first.shape[:2]
 
@@ -91,7 +98,7 @@ def frame_folder(folder: Path, times: Path, unit: str, stamp: str,
                                            f"is {w}x{h}")
             yield i, img
 
-    return FrameStream(str(folder), t0, t1, w, h, load)
+    return FrameStream(label, t_start_us, t_end_us, w, h, load)
 
 
 def depth_folder(folder: Path, times: Path, unit: str, depth_scale: float) -> DepthStream:
@@ -100,6 +107,13 @@ def depth_folder(folder: Path, times: Path, unit: str, depth_scale: float) -> De
     t = read_times(times, (1,), unit)[:, 0]
     if len(t) != len(files):
         raise InputError(times, f"{len(t)} times for {len(files)} depth images in {folder}")
+    return depth_images(str(folder), files, t, depth_scale)
+
+
+def depth_images(label: str, files: list[Path], t_us: np.ndarray, depth_scale: float
+                 ) -> DepthStream:
+    """Depth maps from 16-bit PNGs (``value / depth_scale`` metres) and their times ([N] int64
+    us); every map must have the first one's size."""
     first = _read_depth(files[0], depth_scale)
     h, w = first.shape
 
@@ -111,7 +125,7 @@ def depth_folder(folder: Path, times: Path, unit: str, depth_scale: float) -> De
                                            f"{w}x{h}")
             yield i, d
 
-    return DepthStream(str(folder), t, w, h, load)
+    return DepthStream(label, t_us, w, h, load)
 
 
 def tum_track(path: Path) -> PoseTrack:

@@ -68,7 +68,10 @@ class RecordingSpec:
         first_frame, max_frames: frame range to import (after dropping unusable frames).
         name: sequence name (default: the output folder's name).
         preset: name of a :class:`~egs_bench.recordings.presets.RecordingPreset`.
-        depth_source, sensors: recorded in ``meta.yaml``.
+        depth_source: recorded in ``meta.yaml``.
+        sensors: sensor names by stream (events, frames, depth, groundtruth) for
+            ``meta.yaml``; a stream not named here gets the name the recording gives (AEDAT4)
+            or its source file and topic.
     """
 
     events: Path
@@ -97,6 +100,26 @@ class RecordingSpec:
     sensors: dict[str, str] = field(default_factory=dict)
 
 
+SENSOR_KEYS = ("events", "frames", "depth", "groundtruth")
+
+
+def parse_sensor_names(items: list[str]) -> dict[str, str]:
+    """``["depth=Azure Kinect", ...]`` -> ``{"depth": "Azure Kinect"}`` (``--sensor``).
+
+    Raises:
+        ConfigError: an item without ``=``, an unknown stream or an empty name.
+    """
+    names: dict[str, str] = {}
+    for item in items:
+        key, sep, name = item.partition("=")
+        key, name = key.strip(), name.strip()
+        if not sep or key not in SENSOR_KEYS or not name:
+            raise ConfigError(f"--sensor {item!r}: expected STREAM=NAME with STREAM one of "
+                              f"{', '.join(SENSOR_KEYS)}")
+        names[key] = name
+    return names
+
+
 def apply_preset(spec: RecordingSpec) -> RecordingSpec:
     """``spec`` with unset topics and conventions filled from ``spec.preset``."""
     if spec.preset is None:
@@ -121,7 +144,6 @@ def apply_preset(spec: RecordingSpec) -> RecordingSpec:
         gt_topic=pick(spec.gt_topic, p.gt_topic),
         frame_stamp=pick(spec.frame_stamp, p.frame_stamp),
         depth_source=pick(spec.depth_source, p.depth_source),
-        sensors={**p.sensors, **spec.sensors},
     )
 
 
@@ -205,12 +227,6 @@ def _open_inputs(spec: RecordingSpec) -> _Inputs:
         on_event = calib.depth_on_event_grid
         calib = replace(calib, event_camera=cam, depth_camera=cam if on_event
                         else calib.depth_camera)
-    cam = calib.event_camera
-    if cam is None:
-        raise calib.error("no event_camera")
-    if (events.width, events.height) != (cam.width, cam.height):
-        raise calib.error(f"event_camera is {cam.width}x{cam.height} but {events.label} "
-                          f"declares a {events.width}x{events.height} sensor")
     # frames
     frames_path = spec.frames or spec.events
     kind = _kind(frames_path, "frames")
@@ -226,15 +242,8 @@ def _open_inputs(spec: RecordingSpec) -> _Inputs:
                                       spec.frame_stamp or "mid", spec.exposure_us)
     else:
         raise InputError(frames_path, "frames must come from an .aedat4 file, a bag or a folder")
-    frame_cam = calib.frame_camera or cam
-    if (frames.width, frames.height) != (frame_cam.width, frame_cam.height):
-        which = "frame_camera" if calib.frame_camera else "event_camera (frames come from the " \
-                                                          "event sensor)"
-        raise calib.error(f"{which} is {frame_cam.width}x{frame_cam.height} but the frames in "
-                          f"{frames.label} are {frames.width}x{frames.height}")
     # depth
-    dcam = calib.depth_camera
-    if dcam is None:
+    if calib.depth_camera is None:
         raise calib.error("no depth_camera (a camera, or `event` when depth is on the event "
                           "camera's grid)")
     kind = _kind(spec.depth, "depth")
@@ -244,12 +253,9 @@ def _open_inputs(spec: RecordingSpec) -> _Inputs:
         if spec.depth_times is None:
             raise InputError(spec.depth, "a depth folder needs a times file (--depth-times)")
         depth = folders.depth_folder(spec.depth, spec.depth_times, spec.times_unit,
-                                     calib.depth_scale)
+                                     require_depth_scale(calib, spec.depth))
     else:
         raise InputError(spec.depth, "depth must come from a ROS1 bag or a folder of PNGs")
-    if (depth.width, depth.height) != (dcam.width, dcam.height):
-        raise calib.error(f"depth_camera is {dcam.width}x{dcam.height} but the depth maps in "
-                          f"{depth.label} are {depth.width}x{depth.height}")
     # ground truth
     kind = _kind(spec.gt, "ground truth")
     if kind == "bag":
@@ -258,7 +264,49 @@ def _open_inputs(spec: RecordingSpec) -> _Inputs:
         gt = folders.tum_track(spec.gt)
     else:
         raise InputError(spec.gt, "ground truth must be a TUM file or a ROS1 bag")
+    return checked_inputs(calib, events, frames, depth, gt)
+
+
+def checked_inputs(calib: RecordingCalib, events: EventSource, frames: FrameStream,
+                   depth: DepthStream, gt: PoseTrack) -> _Inputs:
+    """The opened streams with their calibration, once the sizes agree and the depth has
+    the scale it needs.
+
+    Raises:
+        InputError: naming the calibration file (a missing camera or depth_scale, a camera
+            whose size differs from its stream's).
+    """
+    cam = calib.event_camera
+    if cam is None:
+        raise calib.error("no event_camera")
+    if (events.width, events.height) != (cam.width, cam.height):
+        raise calib.error(f"event_camera is {cam.width}x{cam.height} but {events.label} "
+                          f"declares a {events.width}x{events.height} sensor")
+    frame_cam = calib.frame_camera or cam
+    if (frames.width, frames.height) != (frame_cam.width, frame_cam.height):
+        which = "frame_camera" if calib.frame_camera else "event_camera (frames come from the " \
+                                                          "event sensor)"
+        raise calib.error(f"{which} is {frame_cam.width}x{frame_cam.height} but the frames in "
+                          f"{frames.label} are {frames.width}x{frames.height}")
+    dcam = calib.depth_camera
+    if dcam is None:
+        raise calib.error("no depth_camera (a camera, or `event` when depth is on the event "
+                          "camera's grid)")
+    if depth.integer_units:
+        require_depth_scale(calib, Path(depth.label))
+    if (depth.width, depth.height) != (dcam.width, dcam.height):
+        raise calib.error(f"depth_camera is {dcam.width}x{dcam.height} but the depth maps in "
+                          f"{depth.label} are {depth.width}x{depth.height}")
     return _Inputs(calib, cam, dcam, events, frames, depth, gt)
+
+
+def require_depth_scale(calib: RecordingCalib, source: Path) -> float:
+    """``calib.depth_scale``, which 16-bit depth needs: a guessed scale (RealSense's 1000 is
+    TUM's 5000 elsewhere) would scale the whole map without a word."""
+    if calib.depth_scale is None:
+        raise calib.error(f"missing depth_scale: the depth maps in {source} are 16-bit "
+                          "integers (give units per metre, e.g. 1000 for millimetres)")
+    return calib.depth_scale
 
 
 # ------------------------------------------------------------------------------------------
@@ -345,7 +393,12 @@ def _plan(inp: _Inputs, spec: RecordingSpec) -> _Plan:
 
 def _events_in(source: EventSource, lut: np.ndarray, width: int, height: int, t_lo: int,
                t_hi: int, stats: dict) -> Iterator[Events]:
-    """Undistorted events with ``t_lo <= t <= t_hi``, checked against the sensor."""
+    """Undistorted events with ``t_lo <= t <= t_hi``, checked against the sensor.
+
+    Reads the whole source, so that ``stats`` counts every event: ``in_recording``,
+    ``before_first_exposure`` / ``after_last_exposure`` (outside ``[t_lo, t_hi]``, not
+    imported), ``read`` (inside) and ``outside_undistorted`` (inside, but no undistorted pixel).
+    """
     last_t = None
     for ev in source.batches():
         if (ev.x >= width).any() or (ev.y >= height).any():
@@ -359,10 +412,12 @@ def _events_in(source: EventSource, lut: np.ndarray, width: int, height: int, t_
         last_t = int(ev.t[-1])
         stats["first_us"] = stats.get("first_us", int(ev.t[0]))
         stats["last_us"] = last_t
-        if ev.t[-1] < t_lo:
+        stats["in_recording"] += len(ev)
+        before, after = int((ev.t < t_lo).sum()), int((ev.t > t_hi).sum())
+        stats["before_first_exposure"] += before
+        stats["after_last_exposure"] += after
+        if before + after == len(ev):
             continue
-        if ev.t[0] > t_hi:
-            break
         keep = (ev.t >= t_lo) & (ev.t <= t_hi)
         flat = lut[ev.y[keep].astype(np.int64) * width + ev.x[keep]]
         ok = flat >= 0
@@ -371,6 +426,18 @@ def _events_in(source: EventSource, lut: np.ndarray, width: int, height: int, t_
         flat = flat[ok]
         yield Events((flat % width).astype(np.uint16), (flat // width).astype(np.uint16),
                      ev.t[keep][ok], ev.p[keep][ok])
+
+
+def _sensor_names(spec: RecordingSpec, inp: _Inputs) -> dict[str, str]:
+    """Each stream's sensor as the user names it (``spec.sensors``), else as the recording
+    names it (an AEDAT4 file's camera, e.g. ``DAVIS346_00000104``), else its source
+    (``file`` or ``file:topic``). A preset's sensor names are never used here: a preset fixes
+    topics and conventions, and a Kinect bag read with the RealSense preset is still a Kinect."""
+    from_data = {"events": (inp.events.sensor, inp.events.label),
+                 "frames": (inp.frames.sensor, inp.frames.label),
+                 "depth": (None, inp.depth.label), "groundtruth": (None, inp.gt.label)}
+    return {key: spec.sensors.get(key) or named or label
+            for key, (named, label) in from_data.items()}
 
 
 def _lockstep(stream_load, wanted: np.ndarray) -> Iterator[np.ndarray]:
@@ -404,14 +471,23 @@ def import_recording(spec: RecordingSpec, out: str | Path, *, overwrite: bool = 
             names the file; nothing is written.
         ConfigError: inconsistent options.
     """
-    from egs_bench.datasets.sequence import Sequence, SequenceWriter
-
     out = Path(out)
     prepare_output(out, "sequence", overwrite=overwrite,
                    inputs=[spec.events, spec.frames, spec.depth, spec.gt, spec.calib,
                            spec.frame_times, spec.depth_times])
     spec = apply_preset(spec)
-    inp = _open_inputs(spec)
+    return write_sequence(_open_inputs(spec), spec, out, overwrite=overwrite, progress=progress)
+
+
+def write_sequence(inp: _Inputs, spec: RecordingSpec, out: Path, *, overwrite: bool,
+                   progress: bool, generator: str = "egs-bench import-recording",
+                   layout: dict[str, Any] | None = None) -> Path:
+    """Write the opened inputs as the sequence folder ``out`` (atomically; ``out`` already
+    cleared by ``prepare_output``). ``spec`` gives the frame range, tolerances, names and
+    conventions; ``layout`` is recorded as ``recording.layout`` (a dataset importer's own
+    conventions)."""
+    from egs_bench.datasets.sequence import Sequence, SequenceWriter
+
     plan = _plan(inp, spec)
     calib = inp.calib
     cam = inp.event_camera
@@ -423,7 +499,7 @@ def import_recording(spec: RecordingSpec, out: str | Path, *, overwrite: bool = 
     on_frame_sensor = frame_cam is None
     name = spec.name or out.name
     meta: dict[str, Any] = {
-        "name": name, "source": "real", "generator": "egs-bench import-recording",
+        "name": name, "source": "real", "generator": generator,
         "generator_version": __version__,
         "width": pinhole.width, "height": pinhole.height, "fx": pinhole.fx, "fy": pinhole.fy,
         "cx": pinhole.cx, "cy": pinhole.cy,
@@ -435,13 +511,11 @@ def import_recording(spec: RecordingSpec, out: str | Path, *, overwrite: bool = 
         else None,
         "events_on_frame_sensor": on_frame_sensor,
         "depth_source": spec.depth_source,
-        "sensors": {"events": spec.sensors.get("events", inp.events.label),
-                    "frames": spec.sensors.get("frames", inp.frames.label),
-                    "depth": spec.sensors.get("depth", inp.depth.label),
-                    "groundtruth": spec.sensors.get("groundtruth", inp.gt.label)},
+        "sensors": _sensor_names(spec, inp),
         "crf": {"description": "unknown (a real camera; EGS-SLAM learns its response)"},
     }
-    ev_stats = {"read": 0, "outside_undistorted": 0}
+    ev_stats = {"read": 0, "outside_undistorted": 0, "in_recording": 0,
+                "before_first_exposure": 0, "after_last_exposure": 0}
     valid_frac: list[float] = []
     with atomic_dir(out, replace=overwrite) as tmp:
         writer = SequenceWriter(tmp, meta, t_offset_us=int(plan.t_start[0]), with_sharp=False)
@@ -474,14 +548,20 @@ def import_recording(spec: RecordingSpec, out: str | Path, *, overwrite: bool = 
         bar.close()
         writer.meta["recording"] = {
             "preset": spec.preset,
+            # the preset's rig, for reference: nothing in the data confirms it
+            "preset_sensors": dict(get_preset(spec.preset).sensors) if spec.preset else None,
             "inputs": {"events": inp.events.label, "frames": inp.frames.label,
                        "depth": inp.depth.label, "groundtruth": inp.gt.label,
                        "calib": str(spec.calib)},
             "frame_stamp": spec.frame_stamp,
+            **({"layout": layout} if layout is not None else {}),
             "calib": calib.to_dict(),
             "frames": {"in_recording": len(inp.frames), "imported": len(plan.frames),
                        "first_index": int(plan.frames[0]), "dropped": plan.dropped},
-            "events": {"imported": ev_stats["read"] - ev_stats["outside_undistorted"],
+            "events": {"in_recording": ev_stats["in_recording"],
+                       "imported": ev_stats["read"] - ev_stats["outside_undistorted"],
+                       "dropped_before_first_exposure": ev_stats["before_first_exposure"],
+                       "dropped_after_last_exposure": ev_stats["after_last_exposure"],
                        "dropped_outside_undistorted_image": ev_stats["outside_undistorted"],
                        "undistorted_pixels_reached": cam.event_coverage(lut)},
             "depth": {"max_abs_dt_us": int(np.abs(plan.depth_dt).max()),

@@ -22,7 +22,8 @@ class RecordingPreset:
         frame_stamp: what a frame message's stamp marks (start, mid or end of the exposure).
         depth_source: ``rgbd`` (an RGB-D camera) or ``lidar`` (depth maps from a LiDAR).
         events_on_frame_sensor: whether frames and events come from one pixel grid.
-        sensors: sensor names recorded in ``meta.yaml``.
+        sensors: the rig's sensors, recorded as ``recording.preset_sensors`` in ``meta.yaml``
+            (for reference only: ``sensors`` there come from the data or ``--sensor``).
         downloads: what a user downloads.
         notes: conventions and caveats (README).
     """

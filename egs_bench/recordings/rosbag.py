@@ -43,6 +43,8 @@ POSE_TYPES = ("geometry_msgs/msg/PoseStamped", "geometry_msgs/msg/TransformStamp
               "nav_msgs/msg/Odometry")
 EXPOSURE_TYPES = ("std_msgs/msg/Int32", "std_msgs/msg/UInt32")
 CAMERA_INFO_TYPES = ("sensor_msgs/msg/CameraInfo",)
+#: depth encodings in integer units (divided by depth_scale), lower case
+INTEGER_DEPTH_ENCODINGS = ("16uc1", "mono16")
 #: the event record of the fast path
 EVENT_RECORD = np.dtype([("x", "<u2"), ("y", "<u2"), ("sec", "<u4"), ("nsec", "<u4"),
                          ("p", "u1")])
@@ -68,6 +70,7 @@ class BagFile:
             raise InputError(self.path, "bag file not found")
         with self._reader() as reader:
             self.topics = {c.topic: (c.msgtype, c.msgcount) for c in reader.connections}
+        self._encodings: dict[str, set[str]] = {}  # image topic -> encodings seen
 
     def _reader(self) -> _GuardedReader:
         return _GuardedReader(self.path)
@@ -135,12 +138,15 @@ class BagFile:
     # ------------------------------------------------------------------ images
     def _image_stamps(self, topic: str) -> tuple[np.ndarray, np.ndarray, tuple[int, int]]:
         stamps, bag_t, size = [], [], None
+        encodings: set[str] = set()
         for t_bag, msg in self._messages(topic):
             stamps.append(_stamp_us(msg.header.stamp))
             bag_t.append(t_bag)
             size = (int(msg.width), int(msg.height))
+            encodings.add(str(msg.encoding).lower())
         if size is None:
             raise InputError(self.path, f"topic {topic!r} holds no image")
+        self._encodings[topic] = encodings
         return np.asarray(stamps, np.int64), np.asarray(bag_t, np.int64), size
 
     def _image_loader(self, topic: str, convert):
@@ -184,13 +190,15 @@ class BagFile:
             topic, lambda m: to_rgb8(_image_array(m), str(m.encoding)))
         return FrameStream(label, t0, t1, w, h, load)
 
-    def depth_stream(self, topic: str | None, depth_scale: float) -> DepthStream:
+    def depth_stream(self, topic: str | None, depth_scale: float | None) -> DepthStream:
         """Depth maps of an Image topic: 16UC1 / mono16 divided by ``depth_scale`` (units per
-        metre), 32FC1 / 64FC1 taken as metres; NaN and inf become 0 (invalid)."""
+        metre), 32FC1 / 64FC1 taken as metres; NaN and inf become 0 (invalid).
+        ``integer_units`` of the result says whether the topic needs ``depth_scale``."""
         topic = self.resolve_topic(topic, IMAGE_TYPES, "depth")
         stamps, _, (w, h) = self._image_stamps(topic)
         label, load = self._image_loader(topic, lambda m: decode_depth_message(m, depth_scale))
-        return DepthStream(label, stamps, w, h, load)
+        integer = bool(self._encodings[topic] & set(INTEGER_DEPTH_ENCODINGS))
+        return DepthStream(label, stamps, w, h, load, integer_units=integer)
 
     # ------------------------------------------------------------------ poses, camera info
     def pose_track(self, topic: str | None) -> PoseTrack:
@@ -336,7 +344,7 @@ def _image_array(msg: Any) -> np.ndarray:
     return arr.reshape(h, w, channels) if channels > 1 else arr.reshape(h, w)
 
 
-def decode_depth_message(msg: Any, depth_scale: float) -> np.ndarray:
+def decode_depth_message(msg: Any, depth_scale: float | None) -> np.ndarray:
     """A ``sensor_msgs/Image`` depth map -> float32 [H, W] metres, 0 = invalid.
 
     ``16UC1`` / ``mono16``: integer units, divided by ``depth_scale`` (units per metre: 1000
@@ -347,8 +355,12 @@ def decode_depth_message(msg: Any, depth_scale: float) -> np.ndarray:
     if enc not in ("16uc1", "mono16", "32fc1", "64fc1"):
         raise ValueError(f"depth encoding {msg.encoding!r} is not 16UC1, mono16 or 32FC1")
     arr = _image_array(msg)
-    depth = arr.astype(np.float64) / depth_scale if enc in ("16uc1", "mono16") \
-        else arr.astype(np.float64)
+    if enc in INTEGER_DEPTH_ENCODINGS:
+        if depth_scale is None:
+            raise ValueError(f"{msg.encoding} depth needs a depth_scale (units per metre)")
+        depth = arr.astype(np.float64) / depth_scale
+    else:
+        depth = arr.astype(np.float64)
     depth[~np.isfinite(depth) | (depth < 0)] = 0.0
     return depth.astype(np.float32)
 

@@ -26,6 +26,7 @@ class FrameStream:
         width, height: image size in pixels.
         load: ``load(indices)`` yields ``(index, image)`` for increasing ``indices``;
             ``image`` is uint8 [H, W, 3] RGB.
+        sensor: the camera as the recording names it (AEDAT4: model and serial), if it does.
     """
 
     label: str
@@ -34,6 +35,7 @@ class FrameStream:
     width: int
     height: int
     load: Callable[[list[int]], Iterator[tuple[int, np.ndarray]]]
+    sensor: str | None = None
 
     def __len__(self) -> int:
         return len(self.t_end_us)
@@ -49,6 +51,8 @@ class DepthStream:
         width, height: map size in pixels.
         load: ``load(indices)`` yields ``(index, depth)`` with depth float32 [H, W] metres,
             0 = invalid.
+        integer_units: whether the maps are integers that need ``depth_scale`` (16-bit PNGs,
+            16UC1) rather than float metres.
     """
 
     label: str
@@ -56,6 +60,7 @@ class DepthStream:
     width: int
     height: int
     load: Callable[[list[int]], Iterator[tuple[int, np.ndarray]]]
+    integer_units: bool = True
 
     def __len__(self) -> int:
         return len(self.t_us)
@@ -69,12 +74,14 @@ class EventSource:
         label: source, for messages.
         width, height: sensor size the file declares.
         batches: ``batches()`` yields time-ordered :class:`Events` batches (whole file).
+        sensor: the camera as the recording names it (AEDAT4: model and serial), if it does.
     """
 
     label: str
     width: int
     height: int
     batches: Callable[[], Iterable[Events]]
+    sensor: str | None = None
 
 
 @dataclass

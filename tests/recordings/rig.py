@@ -113,3 +113,14 @@ def make_rig(root: Path, frames: int = 6) -> Rig:
     calib = root / "calib.yaml"
     calib.write_text(yaml.safe_dump(calib_dict(with_event_camera=False)))
     return Rig(truth, bag, calib)
+
+
+def assert_events_match(seq: Sequence, truth: Sequence) -> None:
+    """The imported sequence's events over its frames are the rig's, bit for bit, on the DAVIS
+    clock (``T0_US`` later)."""
+    a = seq.events.window(int(seq.t_start_us[0]), int(seq.t_end_us[-1]) + 1)
+    b = truth.events.window(int(truth.t_start_us[0]), int(truth.t_end_us[-1]) + 1)
+    assert len(a) == len(b) > 1000
+    np.testing.assert_array_equal(a.t, b.t + T0_US)
+    for k in "xyp":
+        np.testing.assert_array_equal(getattr(a, k), getattr(b, k))

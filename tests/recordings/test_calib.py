@@ -18,8 +18,10 @@ GOOD = {
     "depth_camera": {"width": 640, "height": 480, "intrinsics": [385.0, 385.0, 320.0, 240.0],
                      "depth_scale": 1000},
     "T_event_depth": [[1, 0, 0, 0.05], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]],
+    "T_body_event": np.eye(4).tolist(),
     "time_offsets_us": {"depth": -1500, "mocap": 250},
 }
+FRAME_CAMERA = {"width": 640, "height": 480, "intrinsics": [500.0, 500.0, 320.0, 240.0]}
 
 
 def _write(tmp_path: Path, data) -> Path:
@@ -59,6 +61,41 @@ def test_bad_calibration_names_file_and_problem(tmp_path: Path, change, message)
     with pytest.raises(InputError, match=message) as info:
         load_calib(_write(tmp_path, {**GOOD, **change}))
     assert str(info.value).startswith(str(tmp_path / "calib.yaml"))
+
+
+@pytest.mark.parametrize("drop, add, message", [
+    ("T_body_event", {}, r"missing T_body_event \(event camera -> mocap body"),
+    ("T_event_depth", {}, r"missing T_event_depth \(depth camera -> event camera"),
+    ("time_offsets_us", {}, r"missing time_offsets_us.depth"),
+    (None, {"time_offsets_us": {"depth": 0}}, r"missing time_offsets_us.mocap"),
+    (None, {"frame_camera": FRAME_CAMERA, "time_offsets_us": {"depth": 0, "mocap": 0,
+                                                              "frames": 0}},
+     r"missing T_event_frame \(frame camera -> event camera"),
+    (None, {"frame_camera": FRAME_CAMERA, "T_event_frame": np.eye(4).tolist()},
+     r"missing time_offsets_us.frames"),
+    ("depth_camera", {"depth_camera": "event"},
+     "depth_camera: event .* T_event_depth must be absent or the identity"),
+])
+def test_missing_calibration_values_are_refused(tmp_path: Path, drop, add, message) -> None:
+    """Values that move poses, depth or times have no silent default (identity, 0): the file
+    and the key are named."""
+    data = {k: v for k, v in GOOD.items() if k != drop}
+    data.update(add)
+    with pytest.raises(InputError, match=message) as info:
+        load_calib(_write(tmp_path, data))
+    assert str(info.value).startswith(str(tmp_path / "calib.yaml"))
+
+
+def test_optional_calibration_values(tmp_path: Path) -> None:
+    """Depth on the event grid needs no T_event_depth; frames from the event sensor no frames
+    offset; depth_scale is left for the importer to require (float depth needs none)."""
+    data = {k: v for k, v in GOOD.items() if k not in ("T_event_depth", "depth_camera")}
+    calib = load_calib(_write(tmp_path, {**data, "depth_camera": "event"}))
+    assert (calib.T_event_depth == np.eye(4)).all() and calib.depth_scale is None
+    assert calib.time_offsets_us["frames"] == 0
+    # make-calib's template holds every required key
+    template = write_calib_template(tmp_path / "template.yaml")
+    assert load_calib(template).depth_scale == 1000.0
 
 
 def test_ros_camera_yaml(tmp_path: Path) -> None:

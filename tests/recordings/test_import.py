@@ -19,6 +19,7 @@ from rig import (
     SCENE,
     T0_US,
     Rig,
+    assert_events_match,
     calib_dict,
     event_camera_dict,
     make_rig,
@@ -72,12 +73,7 @@ def test_rig_events_frames_and_times_are_exact(rig: Rig, imported: Path) -> None
     for i in range(len(seq)):
         np.testing.assert_array_equal(seq.rgb(i), truth.rgb(i))
         assert seq.sharp(i) is None
-    a = seq.events.window(int(seq.t_start_us[0]), int(seq.t_end_us[-1]) + 1)
-    b = truth.events.window(int(truth.t_start_us[0]), int(truth.t_end_us[-1]) + 1)
-    assert len(a) == len(b) > 1000
-    np.testing.assert_array_equal(a.t, b.t + T0_US)
-    for k in "xyp":
-        np.testing.assert_array_equal(getattr(a, k), getattr(b, k))
+    assert_events_match(seq, truth)
 
 
 def test_rig_poses_from_mocap_hand_eye_and_time_offset(rig: Rig, imported: Path) -> None:
@@ -131,7 +127,7 @@ def test_rig_depth_reprojected_into_the_event_camera(rig: Rig, imported: Path) -
     assert 0.8 < meta["depth"]["valid_fraction_min"] < 1.0
 
 
-def test_rig_meta_records_source_and_sensors(imported: Path) -> None:
+def test_rig_meta_records_source_and_sensors(rig: Rig, imported: Path) -> None:
     from egs_bench.datasets.inspect import sequence_summary
 
     seq = Sequence.open(imported)
@@ -140,13 +136,25 @@ def test_rig_meta_records_source_and_sensors(imported: Path) -> None:
     assert meta["source"] == "real"
     assert meta["events_on_frame_sensor"] is True
     assert meta["depth_source"] == "rgbd"
-    assert meta["sensors"]["depth"] == "RealSense D435i"
+    # the bag does not say which camera took the depth: its source, never the preset's rig
+    assert meta["sensors"]["depth"] == f"{rig.bag}:/camera/depth/image_rect_raw"
     rec = meta["recording"]
+    assert rec["preset_sensors"]["depth"] == "RealSense D435i"
     assert rec["preset"] == PRESET and rec["frame_stamp"] == "mid"
     assert rec["calib"]["time_offsets_us"] == {"depth": DEPTH_OFFSET_US, "frames": 0,
                                                "mocap": MOCAP_OFFSET_US}
     assert rec["frames"]["dropped"] == {"no_depth_within_tolerance": 0, "no_mocap": 0,
                                         "outside_requested_range": 0}
+    # every event of the bag is accounted for
+    ev = rig.truth.events.window(0, int(rig.truth.t_end_us[-1]) + 1)
+    t0, t1 = rig.truth.t_start_us[0], rig.truth.t_end_us[-1]
+    counts = rec["events"]
+    assert counts["in_recording"] == len(ev)
+    assert counts["dropped_before_first_exposure"] == int((ev.t < t0).sum())
+    assert counts["dropped_after_last_exposure"] == int((ev.t > t1).sum())
+    assert counts["imported"] + counts["dropped_outside_undistorted_image"] \
+        + counts["dropped_before_first_exposure"] + counts["dropped_after_last_exposure"] \
+        == len(ev)
 
 
 # ------------------------------------------------------------------ bad input
@@ -213,6 +221,28 @@ def test_events_outside_the_sensor(rig: Rig, tmp_path: Path) -> None:
     _only(tmp_path, {"bad_events.bag", "calib.yaml"})
 
 
+def test_16_bit_depth_without_depth_scale(rig: Rig, tmp_path: Path) -> None:
+    """16UC1 depth and no depth_scale: refused naming the calibration, not read as mm."""
+    data = calib_dict()
+    del data["depth_camera"]["depth_scale"]
+    calib = tmp_path / "calib.yaml"
+    calib.write_text(yaml.safe_dump(data))
+    with pytest.raises(InputError, match="missing depth_scale: the depth maps in .*"
+                                         "image_rect_raw are 16-bit") as info:
+        import_recording(_spec(rig, calib=calib), tmp_path / "o", progress=False)
+    assert str(info.value).startswith(str(calib))
+    _only(tmp_path, {"calib.yaml"})
+
+
+def test_bad_sensor_option_is_one_line(rig: Rig, tmp_path: Path, capsys) -> None:
+    code = main(["import-recording", "--out", str(tmp_path / "o"), "--events", str(rig.bag),
+                 "--depth", str(rig.bag), "--gt", str(rig.bag), "--calib", str(rig.calib),
+                 "--sensor", "lidar=Velodyne"])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1
+    assert err.startswith("error: --sensor 'lidar=Velodyne': expected STREAM=NAME")
+
+
 def test_truncated_bag(rig: Rig, tmp_path: Path) -> None:
     cut = tmp_path / "cut.bag"
     cut.write_bytes(rig.bag.read_bytes()[: rig.bag.stat().st_size // 2])
@@ -263,12 +293,14 @@ def test_folders_and_tum_inputs(rig: Rig, tmp_path: Path) -> None:
     write_tum(tmp_path / "gt.txt", (truth.t_end_us + T0_US) * 1e-6, truth.poses)
     calib = tmp_path / "calib.yaml"
     calib.write_text(yaml.safe_dump({"event_camera": event_camera_dict(), "depth_camera": "event",
-                                     "depth_scale": float(truth.depth_scale)}))
+                                     "depth_scale": float(truth.depth_scale),
+                                     "T_body_event": np.eye(4).tolist(),
+                                     "time_offsets_us": {"depth": 0, "mocap": 0}}))
     out = import_recording(RecordingSpec(
         events=rig.bag, frames=frames, frame_times=tmp_path / "frames.txt", depth=depth,
         depth_times=tmp_path / "depth.txt", gt=tmp_path / "gt.txt", calib=calib,
-        times_unit="s", events_topic="/dvs/events", max_gt_gap_us=200_000),
-        tmp_path / "seq", progress=False)
+        times_unit="s", events_topic="/dvs/events", max_gt_gap_us=200_000,
+        sensors={"depth": "Azure Kinect"}), tmp_path / "seq", progress=False)
     seq = Sequence.open(out)
     assert len(seq) == len(truth)
     np.testing.assert_array_equal(seq.t_end_us, truth.t_end_us + T0_US)
@@ -277,6 +309,9 @@ def test_folders_and_tum_inputs(rig: Rig, tmp_path: Path) -> None:
         np.testing.assert_allclose(seq.depth(i), truth.depth(i), atol=0.5e-3)  # mm PNGs
         np.testing.assert_allclose(seq.poses[i], truth.poses[i], atol=1e-8)
     assert seq.meta["depth_source"] == "rgbd" and seq.meta["recording"]["preset"] is None
+    assert seq.meta["sensors"]["depth"] == "Azure Kinect"        # named by the user
+    assert seq.meta["sensors"]["frames"] == str(frames)          # else its source
+    assert seq.meta["recording"]["calib"]["depth_scale"] == truth.depth_scale
 
 
 def test_aedat4_recording(shared_data: Path, tmp_path: Path) -> None:
@@ -298,7 +333,8 @@ def test_aedat4_recording(shared_data: Path, tmp_path: Path) -> None:
     calib.write_text(yaml.safe_dump({
         "event_camera": {"width": 346, "height": 260, "intrinsics": [250.0, 250.0, 172.5, 129.5],
                          "distortion_model": "none"},
-        "depth_camera": "event"}))
+        "depth_camera": "event", "depth_scale": 1000, "T_body_event": np.eye(4).tolist(),
+        "time_offsets_us": {"depth": 0, "mocap": 0}}))
     out = import_recording(RecordingSpec(
         events=shared_data / "events/davis346_aestream.aedat4", depth=depth,
         depth_times=tmp_path / "depth.txt", gt=tmp_path / "gt.txt", calib=calib,
@@ -313,7 +349,16 @@ def test_aedat4_recording(shared_data: Path, tmp_path: Path) -> None:
     np.testing.assert_array_equal(ev.t, ref["events_t"][keep])
     np.testing.assert_array_equal(ev.x, ref["events_x"][keep])
     assert (seq.depth(0) == 1.5).all()
-    assert seq.meta["sensors"]["events"] == "DAVIS346"
+    # the camera the file names (DV's header), not the preset's
+    assert seq.meta["sensors"]["events"] == "DAVIS346_00000104"
+    assert seq.meta["sensors"]["frames"] == "DAVIS346_00000104"
+    # every event is counted: 38,538 of the 117,667 lie outside the frames' exposures
+    counts = seq.meta["recording"]["events"]
+    assert counts["in_recording"] == len(ref["events_t"]) == 117_667
+    assert counts["dropped_before_first_exposure"] == int((ref["events_t"] < win[0, 1]).sum())
+    assert counts["dropped_after_last_exposure"] == int((ref["events_t"] > win[-1, 2]).sum())
+    assert counts["dropped_before_first_exposure"] + counts["dropped_after_last_exposure"] \
+        == 117_667 - int(keep.sum()) == 38_538
 
 
 # ------------------------------------------------------------------ SLAM parameters, run, eval

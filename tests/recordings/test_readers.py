@@ -57,6 +57,55 @@ def test_truncated_aedat4_is_reported(shared_data: Path, tmp_path: Path) -> None
         list(rec.events().batches())
 
 
+def _aedat4_packets(data: bytes) -> list[tuple[int, int, int]]:
+    """``(stream_id, payload_offset, payload_size)`` of each packet: after the 14-byte magic
+    and the IOHeader (a little-endian uint32 size, then its bytes), packets are an int32
+    stream id, a uint32 size and the (here LZ4-framed) FlatBuffer, until the data table."""
+    import struct
+
+    off = 14 + 4 + struct.unpack_from("<I", data, 14)[0]
+    packets = []
+    while off + 8 <= len(data):
+        sid, size = struct.unpack_from("<iI", data, off)
+        if sid not in (0, 1, 2, 3) or off + 8 + size > len(data):
+            break  # the file data table
+        packets.append((sid, off + 8, size))
+        off += 8 + size
+    return packets
+
+
+def test_aedat4_integrity_is_what_the_format_gives(shared_data: Path, tmp_path: Path) -> None:
+    """What docs/notes/recordings.md says AEDAT4 can and cannot detect, on the real file:
+    DV writes LZ4 frames without block or content checksums (FLG byte 0x40 in every packet),
+    so 4 KiB of zeros inside an event packet breaks its LZ4/FlatBuffer structure and is
+    refused, while the same damage inside an APS frame (stored as LZ4 literals) decodes into a
+    wrong frame that no reader can tell from a good one."""
+    pytest.importorskip("aedat")
+    from egs_bench.recordings.aedat4 import Aedat4File
+
+    data = (shared_data / AEDAT).read_bytes()
+    ref = np.load(shared_data / "events/davis346_aestream_decoded.npz")
+    packets = _aedat4_packets(data)
+    assert len(packets) == 40
+    assert {data[off:off + 4] for _, off, _ in packets} == {bytes.fromhex("04224d18")}
+    assert {data[off + 4] for _, off, _ in packets} == {0x40}  # no block/content checksum
+
+    def damaged(stream: int) -> Path:
+        _, off, size = [p for p in packets if p[0] == stream][1]
+        bad = bytearray(data)
+        start = off + size // 2 - 2048
+        bad[start:start + 4096] = bytes(4096)
+        path = tmp_path / f"damaged{stream}.aedat4"
+        path.write_bytes(bytes(bad))
+        return path
+
+    with pytest.raises(InputError, match=r"damaged0\.aedat4: .*truncated or corrupt"):
+        list(Aedat4File(damaged(0)).events().batches())
+    frames = dict(Aedat4File(damaged(1)).frames().load([0, 1, 2]))
+    assert (frames[0][..., 0] == ref["frames"][0]).all()
+    assert (frames[1][..., 0] != ref["frames"][1]).sum() > 3000  # silently wrong
+
+
 def test_not_an_aedat4_file(tmp_path: Path) -> None:
     from egs_bench.recordings.aedat4 import Aedat4File
 
