@@ -36,13 +36,23 @@ stamps / frame uids are mapped through its ``index_map.csv`` back to sequence fr
 run's trajectory uses the sequence's own exposure-end stamps. Keyframe-only and partial
 trajectories are recorded in ``run.yaml`` (``estimate: {poses, renders, scale_free}``) and
 reported by evaluation (e.g. "ATE over 9 of 40 frames: the estimate holds keyframes poses
-only").
+only"). A keyframe file a system writes when it shuts down (MonoGS ``trj_final.json``, ORB-SLAM's
+``KeyFrameTrajectory*``) also records ``frames_processed``: the frames the system read, not the
+last keyframe's index + 1, so a protocol that scores keyframes sees a complete run.
+
+Validation at import, as ``egs-bench eval`` would: the sequence folder opens, the estimate has
+at least 3 poses matching the ground truth within 0.01 s, and every render decodes and has the
+sequence's size, all before anything is written. A new run folder is built in a staging folder
+(:func:`egs_bench.fileio.atomic_dir`) and appears only when complete, so a failed import leaves
+nothing that blocks a retry.
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
 import re
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -50,8 +60,10 @@ from typing import Any
 import numpy as np
 
 from egs_bench.errors import ConfigError, InputError
-from egs_bench.geometry import pose_from_tq, read_tum
+from egs_bench.fileio import atomic_dir
+from egs_bench.geometry import Trajectory, pose_from_tq, read_tum
 from egs_bench.images import read_ldr_image
+from egs_bench.outputs import prepare_output
 from egs_bench.runs.folder import RunFolder
 
 _RENDER = re.compile(r"^(\d+)\.png$")
@@ -91,25 +103,101 @@ def import_tum_run(
         InputError: unreadable estimate / ground truth, or badly named renders.
         OutputError: ``out_dir`` exists (without ``overwrite``) or is (or contains) an input.
     """
+    from egs_bench.datasets.sequence import Sequence
+
     if sequence_path is None and groundtruth is None:
         raise InputError(out_dir, "an import needs a sequence folder or a ground-truth file")
     trajectory = read_tum(estimate, min_poses=3)
+    seq = Sequence.open(sequence_path) if sequence_path is not None else None
     if groundtruth is not None:
-        read_tum(groundtruth, min_poses=3)
+        gt, gt_name = read_tum(groundtruth, min_poses=3), Path(groundtruth)
+    else:
+        assert seq is not None
+        gt, gt_name = Trajectory(np.asarray(seq.timestamps_s, dtype=np.float64),
+                                 np.asarray(seq.poses, dtype=np.float64)), \
+            seq.path / "groundtruth.txt"
+    _check_overlap(trajectory, gt, Path(estimate), gt_name)
     renders = _renders_in(renders_dir) if renders_dir is not None else {}
-    run = RunFolder.create(out_dir, method=method, sequence_name=sequence_name,
-                           sequence_path=sequence_path, groundtruth=groundtruth,
-                           config={"imported_from": str(Path(estimate).resolve())},
-                           overwrite=overwrite,
-                           inputs=[p for p in (estimate, renders_dir) if p is not None])
-    with run.failure_guard():
+    if seq is not None:
+        _check_render_frames(renders, len(seq), Path(renders_dir or "."))
+    _check_renders(renders, seq)
+    with _new_run(out_dir, overwrite=overwrite, method=method, sequence_name=sequence_name,
+                  sequence_path=sequence_path, groundtruth=groundtruth,
+                  config={"imported_from": str(Path(estimate).resolve())},
+                  inputs=[p for p in (estimate, renders_dir) if p is not None]) as run:
         run.write_trajectory(trajectory.timestamps, trajectory.poses)
         for index, src in renders.items():
             run.write_render(index, read_ldr_image(src))
         run.log(f"imported {len(trajectory)} poses from {estimate}"
                 + (f" and {len(renders)} renders from {renders_dir}" if renders else ""))
         run.mark_done()
-    return run
+    return RunFolder.open(out_dir)
+
+
+def _check_overlap(trajectory: Trajectory, gt: Trajectory, est_name: Path,
+                   gt_name: Path) -> None:
+    """Refuse an estimate that evaluation could not score: fewer than 3 of its poses match a
+    ground-truth pose within evaluation's 0.01 s (e.g. a clock 100 s off), with evaluation's
+    own association and message.
+
+    Raises:
+        InputError: naming ``est_name``.
+    """
+    from egs_bench.eval.ate import DEFAULT_MAX_DIFF_S, associate
+
+    associate(trajectory, gt, max_diff_s=DEFAULT_MAX_DIFF_S, est_name=est_name,
+              gt_name=gt_name)
+
+
+def _check_render_frames(renders: Mapping[int, Any], num_frames: int, where: Path) -> None:
+    """Refuse renders of frames the sequence does not have."""
+    beyond = [f for f in renders if not 0 <= f < num_frames]
+    if beyond:
+        raise InputError(where, f"holds a render of frame {min(beyond)}, beyond the sequence's "
+                                f"{num_frames} frames")
+
+
+def _check_renders(renders: Mapping[int, Path | np.ndarray], seq) -> None:
+    """Decode every render file and compare its size with the sequence's, before anything is
+    written (a header-only check passes a truncated file).
+
+    Raises:
+        InputError: naming the render that does not decode or has another size.
+    """
+    for image in renders.values():
+        img = read_ldr_image(image) if isinstance(image, Path) else image
+        if seq is not None and img.shape[:2] != (seq.height, seq.width):
+            where = image if isinstance(image, Path) else Path(seq.path)
+            raise InputError(where, f"render is {img.shape[1]}x{img.shape[0]}, the sequence is "
+                                    f"{seq.width}x{seq.height}")
+
+
+@contextlib.contextmanager
+def _new_run(out_dir: str | Path, *, overwrite: bool, inputs: list[str | Path],
+             **create: Any) -> Iterator[RunFolder]:
+    """The run folder an import fills (``create`` are :meth:`RunFolder.create`'s arguments).
+
+    A new (or empty) ``out_dir`` is built in a staging folder and renamed into place when the
+    block ends after :meth:`RunFolder.mark_done`; on an error or a signal the staging folder is
+    removed, so nothing is left that a retry would have to ``--overwrite``. An existing run
+    folder replaced with ``overwrite`` is rewritten in place, by :meth:`RunFolder.create`'s
+    rules (files a run does not write are kept, which a folder swap would delete).
+    """
+    out_dir = Path(out_dir)
+    protected = [p for p in (create.get("sequence_path"), create.get("groundtruth"), *inputs)
+                 if p is not None]
+    prepare_output(out_dir, "run", overwrite=overwrite, inputs=protected)
+    fresh = not out_dir.exists() or (out_dir.is_dir() and not out_dir.is_symlink()
+                                     and not any(out_dir.iterdir()))
+    if not fresh:
+        run = RunFolder.create(out_dir, overwrite=overwrite, inputs=inputs, **create)
+        with run.failure_guard():
+            yield run
+        return
+    with atomic_dir(out_dir) as staging:
+        run = RunFolder.create(staging, inputs=inputs, **create)
+        with run.failure_guard():
+            yield run
 
 
 def _renders_in(renders_dir: str | Path) -> dict[int, Path]:
@@ -393,12 +481,32 @@ def _frames(export_dir: str | Path | None, seq) -> _Frames:
     return _Frames(np.arange(n), stamps, stamps, rgb, None, f"sequence {seq.path}")
 
 
+def _monogs_loaded(frames: _Frames) -> np.ndarray:
+    """Export-frame indices of the frames MonoGS loads (its uids index them): its TUM loader
+    drops frames closer than 1/32 s, its Replica loader none."""
+    if frames.export_format == "replica":
+        return np.arange(len(frames.frame))
+    return monogs_kept_frames(frames.t_external)
+
+
+def _frames_processed(est: ExternalEstimate, frames: _Frames) -> int | None:
+    """Leading sequence frames an external system read, when its keyframe file says it ran to
+    the end (MonoGS ``trj_final.json``, ORB-SLAM's keyframe file: both written at shutdown);
+    None otherwise (evaluation then counts up to the last pose)."""
+    if est.poses_kind != "keyframes":
+        return None
+    if est.uids is not None:
+        if not any(Path(src).name == "trj_final.json" for src in est.sources):
+            return None  # an intermediate trj_<n>.json: MonoGS was still running
+        return int(frames.frame[_monogs_loaded(frames)].max()) + 1
+    return int(frames.frame.max()) + 1
+
+
 def _to_export_frames(est: ExternalEstimate, frames: _Frames, fmt: str,
                       source: Path) -> tuple[np.ndarray, np.ndarray | None]:
     """Export-frame index of every pose and of every keyframe."""
     if est.uids is not None:
-        kept = monogs_kept_frames(frames.t_external) if frames.export_format != "replica" \
-            else np.arange(len(frames.frame))
+        kept = _monogs_loaded(frames)
         if est.uids.max() >= len(kept):
             raise InputError(source, f"frame uid {int(est.uids.max())} beyond the "
                                      f"{len(kept)} frames MonoGS loads from {frames.what}")
@@ -486,7 +594,7 @@ def import_external_run(
         from egs_bench.interop.export import read_export_index
 
         sequence_path = read_export_index(export_dir).sequence_path
-    seq = Sequence.open(sequence_path, check_images=False)
+    seq = Sequence.open(sequence_path)
     frames = _frames(export_dir, seq)
     if len(frames.frame) and frames.frame.max() >= len(seq):
         raise InputError(Path(export_dir or sequence_path), f"maps to frame "
@@ -515,6 +623,12 @@ def import_external_run(
         for f, rendered in zip(seq_frames, _render_ply(est.ply, poses, seq.intrinsics),
                                strict=True):
             renders[int(f)] = rendered
+    _check_render_frames(renders, len(seq), Path(renders_dir or source))
+    _check_renders(renders, seq)
+    _check_overlap(Trajectory(seq.timestamps_s[seq_frames], poses),
+                   Trajectory(np.asarray(seq.timestamps_s, dtype=np.float64),
+                              np.asarray(seq.poses, dtype=np.float64)),
+                   source, seq.path / "groundtruth.txt")
     renders_kind = "none" if not renders else (
         "all" if len(renders) >= len(seq) else
         "keyframes" if est.poses_kind == "keyframes" or est.renders else "subset")
@@ -524,25 +638,22 @@ def import_external_run(
               "render_ply": bool(render_ply)}
     if fmt == "rampvo":
         config["quaternion_columns"] = quaternion
-    run = RunFolder.create(out_dir, method=name,
-                           sequence_name=sequence_name or seq.name, sequence_path=seq.path,
-                           config=config, overwrite=overwrite,
-                           estimate={"poses": est.poses_kind, "renders": renders_kind,
-                                     "scale_free": est.scale_free, "format": fmt},
-                           inputs=[p for p in (source, export_dir, renders_dir) if p is not None])
-    with run.failure_guard():
+    estimate: dict[str, Any] = {"poses": est.poses_kind, "renders": renders_kind,
+                                "scale_free": est.scale_free, "format": fmt}
+    processed = _frames_processed(est, frames)
+    if processed is not None:
+        estimate["frames_processed"] = processed
+    with _new_run(out_dir, overwrite=overwrite, method=name,
+                  sequence_name=sequence_name or seq.name, sequence_path=seq.path,
+                  config=config, estimate=estimate,
+                  inputs=[p for p in (source, export_dir, renders_dir) if p is not None]) as run:
         run.write_trajectory(seq.timestamps_s[seq_frames], poses)
         if kf_idx is not None:
             run.write_keyframes(frames.frame[kf_idx])
         elif est.poses_kind == "keyframes":
             run.write_keyframes(seq_frames)
-        for f, image in sorted(renders.items()):
-            img = image if isinstance(image, np.ndarray) else read_ldr_image(image)
-            if img.shape != (seq.height, seq.width, 3):
-                raise InputError(image if isinstance(image, Path) else source,
-                                 f"render is {img.shape[1]}x{img.shape[0]}, the sequence is "
-                                 f"{seq.width}x{seq.height}")
-            run.write_render(f, img)
+        for f, image in sorted(renders.items()):  # checked by _check_renders
+            run.write_render(f, image if isinstance(image, np.ndarray) else read_ldr_image(image))
         if est.reported:
             from egs_bench.fileio import write_text_atomic
 
@@ -551,5 +662,5 @@ def import_external_run(
         run.log(f"imported {len(poses)} {est.poses_kind} poses ({fmt}) of {len(seq)} frames "
                 f"from {', '.join(est.sources)}; {len(renders)} renders ({renders_kind})")
         run.mark_done()
-    return run
+    return RunFolder.open(out_dir)
 

@@ -57,26 +57,29 @@ def render_map(
     fov: float = typer.Option(None, min=1.0, max=170.0,
                               help="Horizontal field of view in degrees, square pixels "
                                    "[default: the run's camera, else 60]."),
+    fx: float = typer.Option(None, "--fx", help="Focal length in pixels (instead of --fov)."),
+    fy: float = typer.Option(None, "--fy", help="Vertical focal length [default: --fx]."),
+    cx: float = typer.Option(None, "--cx", help="Principal point x in pixels, pixel u "
+                                                "covering [u, u+1) (OpenCV cx + 0.5) "
+                                                "[default: the image centre]."),
+    cy: float = typer.Option(None, "--cy", help="Principal point y, as --cx."),
     backend: str = typer.Option("auto", help="Rasteriser backend: auto, numba, gsplat."),
     overwrite: bool = typer.Option(False, "--overwrite",
                                    help="Replace an existing PNG at --out."),
 ) -> None:
     """Render a saved Gaussian map from one camera into a PNG (a run's map as the run did)."""
-    from egs_bench.geometry import Intrinsics
     from egs_bench.images import write_ldr_image
     from egs_bench.outputs import prepare_output
-    from egs_bench.slam.map_export import open_map, render_map_view
+    from egs_bench.slam.map_export import open_map, render_map_view, view_camera
 
     if backend not in BACKENDS:
         raise ConfigError(f"--backend must be one of {', '.join(BACKENDS)}, not {backend!r}")
     pose_wc = _parse_pose(pose) if pose else None
     prepare_output(out, "png", overwrite=overwrite, inputs=[source, appearance])
     src = open_map(source, appearance)
-    camera = None
-    if src.appearance is None or any(v is not None for v in (width, height, fov)):
-        w, h = width or 640, height or 480
-        f = 0.5 * w / np.tan(np.radians(fov or 60.0) / 2)
-        camera = Intrinsics(f, f, w / 2, h / 2, w, h)
+    base = src.appearance.camera if src.appearance is not None else None
+    camera = view_camera(base, width=width, height=height, fov_deg=fov, fx=fx, fy=fy, cx=cx,
+                         cy=cy) or view_camera(None, fov_deg=60.0)
     img, what = render_map_view(src, frame=frame, pose=pose_wc, camera=camera,
                                 exposure=exposure, colors=colors, backend=backend)
     write_ldr_image(out, img)

@@ -181,8 +181,13 @@ def processed_frames(run: RunFolder, protocol: Protocol, seq) -> int:
     """Number of leading sequence frames the run covers: those up to its last estimated pose.
 
     A run stopped early (e.g. ``--max-frames``) is scored on the frames it processed; the
-    coverage is recorded in ``metrics.json`` and shown by leaderboards.
+    coverage is recorded in ``metrics.json`` and shown by leaderboards. An import whose
+    estimate holds keyframes only records the frames the system read (``run.yaml``
+    ``estimate.frames_processed``): its last keyframe is not where it stopped.
     """
+    recorded = run.estimate.get("frames_processed")
+    if isinstance(recorded, int) and not isinstance(recorded, bool) and recorded > 0:
+        return min(recorded, len(seq))
     last = float(run.read_trajectory().timestamps[-1])
     stamps = np.asarray(seq.timestamps_s, dtype=np.float64)
     return int(np.searchsorted(stamps, last + protocol.ate_max_diff_s, side="right"))
@@ -310,11 +315,16 @@ def evaluate_run(run_dir: str | Path, protocol: str | Protocol = DEFAULT_PROTOCO
     if seq is not None:
         covered = processed_frames(run, proto, seq)
         coverage = {"frames_processed": covered, "frames_in_sequence": len(seq)}
+        if proto.ate_frames == "all" and run.estimate["poses"] != "all":
+            # the protocol scores every frame's pose and the estimate has only some: it covers
+            # the frames it matched (a keyframe-only run is partial here, complete under a
+            # protocol that scores keyframes)
+            coverage["frames_processed"] = min(covered, int(ate["n_matched"]))
         if covered < len(seq):
             notes.append(f"the run covers {covered} of the sequence's {len(seq)} frames; "
                          "metrics are over those")
-    notes += _estimate_notes(run, proto, ate, coverage["frames_processed"] if coverage else None)
-    partial = (_partial_renders_note(run, proto, coverage["frames_processed"])
+    notes += _estimate_notes(run, proto, ate, covered if coverage else None)
+    partial = (_partial_renders_note(run, proto, covered)
                if coverage is not None else None)
     if seq is None:
         if run.render_indices():

@@ -45,7 +45,9 @@ consuming loader's parsing logic):
 
 Output safety: an existing ``OUT`` is only replaced with ``overwrite=True`` and only if it is
 an earlier egs-bench export (it has ``egs_export.yaml``); the export is built under a temporary
-name and renamed at the end (:func:`egs_bench.fileio.atomic_dir`).
+name and renamed at the end (:func:`egs_bench.fileio.atomic_dir`). Every image is decoded and
+its size checked before it is copied, so a truncated or resized frame stops the export with an
+error naming the file, and nothing is published.
 """
 
 from __future__ import annotations
@@ -148,25 +150,39 @@ def _write_index_map(path: Path, t_export: np.ndarray, t_seq: np.ndarray,
 
 def _copy_rgb(seq, i: int, dst: Path) -> None:
     """Copy frame ``i``'s PNG bytes when it is plain 8-bit RGB (what every loader reads),
-    re-encode it otherwise."""
+    re-encode it otherwise.
+
+    The frame is decoded either way: a header-only check (what ``Sequence.open`` does) passes
+    a truncated file, and a copied one would reach the consuming system as a corrupt frame.
+
+    Raises:
+        InputError: naming the frame's file, when it does not decode or has another size.
+    """
     src = seq.frame_path(i, "rgb")
+    pixels = seq.rgb(i)  # decodes and checks the size against meta.yaml
     plain = src.suffix.lower() == ".png" and image_header(src)[2] == "RGB"
     if plain:
         shutil.copyfile(src, dst)
     else:
-        write_ldr_image(dst, seq.rgb(i))  # dst is a .png name
+        write_ldr_image(dst, pixels)  # dst is a .png name
 
 
 def _depth_png(seq, i: int, dst: Path, scale: float) -> int:
     """Write frame ``i``'s depth at ``scale`` units per metre; returns the number of valid
-    pixels lost to the 16-bit range. Copies the bytes when the scale is unchanged."""
+    pixels lost to the 16-bit range. Copies the bytes when the scale is unchanged, after
+    decoding them (see :func:`_copy_rgb`).
+
+    Raises:
+        InputError: naming the depth file, when it does not decode, has another size or holds
+            invalid values.
+    """
     from egs_bench.datasets.sequence import encode_depth
 
     src = seq.frame_path(i, "depth")
+    depth = seq.depth(i)  # decodes, checks the size and the values
     if src.suffix.lower() == ".png" and abs(seq.depth_scale - scale) < 1e-9:
         shutil.copyfile(src, dst)
         return 0
-    depth = seq.depth(i)
     raw = encode_depth(depth, scale)
     write_depth_png(dst, raw)
     return int(((depth > 0) & (raw == 0)).sum())

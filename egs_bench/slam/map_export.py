@@ -7,11 +7,18 @@
   it reproduces the run's render (same map, pose, camera, near plane and CRF). Without one the
   colours are shown according to the file's colour space (linear: sRGB-encoded; display: as
   they are).
-* :func:`export_display_ply` writes a display-space 3DGS ``.ply`` (colours through the CRF,
-  clamped to [0, 1]; SH degree 3 with zero ``f_rest_*``) for the INRIA loader, gsplat and
-  viewers. The CRF is applied per Gaussian there, before alpha blending, while the run applies
-  it to the blended pixel: the two agree where one Gaussian dominates a pixel and differ where
-  Gaussians of different brightness mix (the CRF is not linear).
+* :func:`export_display_ply` writes a display-space 3DGS ``.ply`` (SH degree 3 with zero
+  ``f_rest_*``) for the INRIA loader, gsplat and viewers. A 3DGS renderer blends the Gaussians'
+  colours linearly and clamps only the final pixel to [0, 1], while the run applies its CRF to
+  the blended pixel. So each colour goes through :func:`blend_response`: the CRF's
+  piecewise-linear curve, continued as a straight line below 0 and above 1, and never clamped
+  per Gaussian. Where the curve is one straight line (the identity start of the learnable CRF,
+  the ``identity`` response) blending and the curve commute: a bright HDR Gaussian still
+  saturates the blended pixel, as in the run, and the export reproduces the run's renders up to
+  float32 rounding. Where the curve bends (a learned or sRGB-shaped curve), Gaussians mixed in
+  one pixel from different segments of the curve differ from the run; no per-Gaussian colour
+  can avoid that. The INRIA renderer also clamps each Gaussian's colour at 0 (gsplat does not),
+  so a map with negative linear colours loses a little there (BENCHMARKS.md, portable maps).
 """
 
 from __future__ import annotations
@@ -27,9 +34,18 @@ from egs_bench.geometry import Intrinsics
 from egs_bench.render.gaussian_map import GaussianMap
 from egs_bench.render.ply import PlyInfo, read_ply, save_ply
 from egs_bench.slam.appearance import APPEARANCE_FILE, MAP_FILE, Appearance, ldr8, read_appearance
-from egs_bench.slam.crf import crf_to_dict
+from egs_bench.slam.crf import (
+    CameraResponse,
+    FixedSRGBCRF,
+    IdentityCRF,
+    LeakyPiecewiseLinearCRF,
+    crf_to_dict,
+)
 
 COLOR_MODES = ("auto", "linear", "display")
+# derivatives of the IEC 61966-2-1 encoding: 12.92 on the linear toe, (1.055 / 2.4) at 1
+SRGB_SLOPE_AT_0 = 12.92
+SRGB_SLOPE_AT_1 = 1.055 / 2.4
 
 
 @dataclass
@@ -143,6 +159,60 @@ def color_space(src: MapSource, colors: str = "auto") -> str:
     return "display" if src.info.n_rest > 0 else "linear"
 
 
+def view_camera(base: Intrinsics | None, *, width: int | None = None,
+                height: int | None = None, fov_deg: float | None = None,
+                fx: float | None = None, fy: float | None = None, cx: float | None = None,
+                cy: float | None = None) -> Intrinsics | None:
+    """The camera of a view from the render options, or None to keep ``base`` as it is.
+
+    Either a horizontal field of view (square pixels) or focal lengths in pixels; the
+    principal point defaults to the image centre. The pixel convention is egs-bench's and
+    gsplat's (pixel ``u`` covers ``[u, u + 1)``; an OpenCV calibration's ``cx`` is this
+    ``cx - 0.5``, docs/design.md §2).
+
+    Args:
+        base: the run's camera (from its appearance file), or None.
+        width, height: image size in pixels (default: ``base``'s, else 640 x 480).
+        fov_deg: horizontal field of view, degrees (excludes ``fx`` / ``fy``).
+        fx, fy: focal lengths in pixels (``fy`` defaults to ``fx`` and needs it).
+        cx, cy: principal point in pixels (default: the image centre).
+
+    Raises:
+        ConfigError: both a field of view and focal lengths, ``fy`` without ``fx``, a value
+            that is not a positive finite number, or a principal point outside the image.
+    """
+    given = {"--fx": fx, "--fy": fy, "--cx": cx, "--cy": cy, "--fov": fov_deg}
+    if all(v is None for v in (width, height, *given.values())):
+        return base
+    for name, v in given.items():
+        if v is not None and not np.isfinite(v):
+            raise ConfigError(f"{name} must be a finite number, got {v}")
+    if fov_deg is not None and (fx is not None or fy is not None):
+        raise ConfigError("give --fov or --fx/--fy, not both")
+    if fy is not None and fx is None:
+        raise ConfigError("--fy needs --fx")
+    for name, v in (("--fx", fx), ("--fy", fy)):
+        if v is not None and v <= 0:
+            raise ConfigError(f"{name} must be positive, got {v}")
+    same_size = base is not None and width in (None, base.width) and height in (None,
+                                                                                base.height)
+    w = width or (base.width if base is not None else 640)
+    h = height or (base.height if base is not None else 480)
+    if fx is None:
+        if fov_deg is None and same_size and base is not None:
+            fx_, fy_ = base.fx, base.fy  # only the principal point changes
+        else:
+            fx_ = fy_ = 0.5 * w / np.tan(np.radians(fov_deg or 60.0) / 2)
+    else:
+        fx_, fy_ = fx, fy if fy is not None else fx
+    keep_pp = base is not None and same_size and fx is None and fov_deg is None
+    cx_ = cx if cx is not None else (base.cx if keep_pp and base is not None else w / 2)
+    cy_ = cy if cy is not None else (base.cy if keep_pp and base is not None else h / 2)
+    if not (0 <= cx_ <= w and 0 <= cy_ <= h):
+        raise ConfigError(f"principal point ({cx_}, {cy_}) is outside the {w}x{h} image")
+    return Intrinsics(float(fx_), float(fy_), float(cx_), float(cy_), int(w), int(h))
+
+
 @torch.no_grad()
 def render_map_view(src: MapSource, *, frame: int | None = None, pose: np.ndarray | None = None,
                     camera: Intrinsics | None = None, exposure: bool = False,
@@ -204,16 +274,50 @@ def render_map_view(src: MapSource, *, frame: int | None = None, pose: np.ndarra
     return img, "display colours, shown as they are"
 
 
+@torch.no_grad()
+def blend_response(crf: CameraResponse, linear: torch.Tensor) -> torch.Tensor:
+    """The curve applied to each Gaussian's linear colour in a display-space export, [...].
+
+    The run's response inside [0, 1], continued as a straight line outside it (the learnable
+    curve: its first and last segments; sRGB: its tangents at 0 and 1) instead of the leaky
+    saturation, and not clamped. Blending weights sum to at most 1, so a blended pixel above 1
+    (an HDR Gaussian) is clamped to white by the renderer, as the run's saturating curve
+    followed by its 8-bit clamp does; a clamp per Gaussian would darken it instead.
+
+    Args:
+        crf: the run's camera response.
+        linear: linear colours (any shape).
+
+    Returns:
+        display colours, same shape and dtype.
+    """
+    if isinstance(crf, IdentityCRF):
+        return linear.clone()
+    if isinstance(crf, LeakyPiecewiseLinearCRF):
+        curve = crf.frozen()
+        inner = curve.inner.to(linear.dtype)
+        # bucketize without clamping the input: below the first node segment 0 is used, above
+        # the last one the last segment, so both ends continue their segment's line
+        idx = torch.bucketize(linear, inner, right=True)
+        return linear * curve.slope.to(linear.dtype)[idx] + curve.intercept.to(linear.dtype)[idx]
+    if isinstance(crf, FixedSRGBCRF):
+        inside = crf(linear.clamp(0.0, 1.0))
+        low = linear * SRGB_SLOPE_AT_0
+        high = 1.0 + (linear - 1.0) * SRGB_SLOPE_AT_1
+        return torch.where(linear < 0, low, torch.where(linear > 1, high, inside))
+    raise ConfigError(f"cannot export colours through a CRF of type {type(crf).__name__}")
+
+
 def display_colors(gmap: GaussianMap, appearance: Appearance) -> torch.Tensor:
-    """Per-Gaussian display colour [N, 3] in [0, 1]: the run's CRF of the linear colour."""
-    with torch.no_grad():
-        return appearance.crf(gmap.colors.detach()).clamp(0, 1)
+    """Per-Gaussian display colour [N, 3] (unclamped): :func:`blend_response` of the linear
+    colour."""
+    return blend_response(appearance.crf, gmap.colors.detach())
 
 
 def export_display_ply(src: MapSource, out: str | Path, *, overwrite: bool = False) -> Path:
     """Write the source's map as a display-space 3DGS ``.ply`` (SH degree 3, zero
-    ``f_rest_*``; colours through the run's CRF; opacity logits, log scales and ``(w, x, y, z)``
-    quaternions as in the map), atomically.
+    ``f_rest_*``; colours through :func:`blend_response` of the run's CRF, unclamped; opacity
+    logits, log scales and ``(w, x, y, z)`` quaternions as in the map), atomically.
 
     Raises:
         InputError: no appearance file (the CRF is unknown), colours already display values,

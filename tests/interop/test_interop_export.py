@@ -312,3 +312,51 @@ def test_cli_export_and_errors(tiny_sequence: Path, tmp_path: Path) -> None:
     assert (tmp_path / "o" / "monogs_rgbd.yaml").is_file()
     assert main(["export", str(tiny_sequence), str(tmp_path / "o2"), "--format", "kitti"]) == 2
     assert not (tmp_path / "o2").exists()
+
+
+def _damaged_copy(src: Path, dst: Path, column: str, how: str) -> Path:
+    """A copy of ``src`` whose frame 2 ``column`` image is truncated or of another size."""
+    shutil.copytree(src, dst)
+    image = dst / column / "000002.png"
+    if how == "truncated":
+        data = image.read_bytes()
+        image.write_bytes(data[: len(data) // 2])
+    else:  # a valid PNG of the wrong size, same mode as the original
+        raw = cv2.imread(str(image), cv2.IMREAD_UNCHANGED)
+        cv2.imwrite(str(image), np.ascontiguousarray(raw[:-2]))
+    return dst
+
+
+@pytest.mark.parametrize("fmt", ["tum-rgbd", "replica", "eds"])
+@pytest.mark.parametrize("column,how", [("rgb", "truncated"), ("depth", "truncated"),
+                                        ("rgb", "resized")])
+def test_export_refuses_a_bad_image(tiny_sequence: Path, tmp_path: Path, fmt: str,
+                                    column: str, how: str) -> None:
+    if fmt == "eds" and column == "depth":
+        pytest.skip("the eds layout holds no depth")
+    src = _damaged_copy(tiny_sequence, tmp_path / "seq", column, how)
+    seq = Sequence.open(src, check_images=False)  # a header-only check would miss truncation
+    bad = src / column / "000002.png"
+    for overwrite in (False, True):
+        out = tmp_path / "out"
+        with pytest.raises(InputError) as err:
+            export_sequence(seq, out, fmt=fmt, overwrite=overwrite)
+        assert str(bad) in str(err.value)
+        if not overwrite:
+            assert not out.exists()
+            good = export_sequence(tiny_sequence, out, fmt=fmt).path
+            before = sorted(p.relative_to(good) for p in good.rglob("*"))
+        else:  # the earlier export is left as it was
+            assert sorted(p.relative_to(out) for p in out.rglob("*")) == before
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]
+
+
+def test_cli_export_of_a_truncated_frame(tiny_sequence: Path, tmp_path: Path, capsys) -> None:
+    from egs_bench.cli import main
+
+    src = _damaged_copy(tiny_sequence, tmp_path / "seq", "rgb", "truncated")
+    assert main(["export", str(src), str(tmp_path / "o"), "--format", "tum-rgbd",
+                 "--quiet"]) == 3
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "000002.png" in err
+    assert not (tmp_path / "o").exists()

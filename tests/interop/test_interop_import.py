@@ -111,8 +111,12 @@ def test_orbslam2_keyframe_file_alone_is_marked(seq: Sequence, export: Path,
     assert run.read_keyframes().tolist() == [0, 4, 8]
     m = evaluate_run(run.path)
     assert m["ate"]["n_matched"] == 3 and m["ate"]["estimate_poses"] == "keyframes"
-    assert any("ATE over 3 of 9 frames: the estimate holds keyframes poses only" in n
+    # ORB-SLAM wrote the file at shutdown: it read all 10 frames (not the last keyframe's
+    # index + 1), and under the all-frame protocol the estimate covers its 3 poses
+    assert run.estimate["frames_processed"] == 10
+    assert any("ATE over 3 of 10 frames: the estimate holds keyframes poses only" in n
                for n in m["notes"])
+    assert m["coverage"] == {"frames_processed": 3, "frames_in_sequence": 10}
     assert any("RPE per frame pairs consecutive poses of the estimate (keyframes)" in n
                for n in m["notes"])
 
@@ -387,3 +391,145 @@ def test_cli_import_run(seq: Sequence, export: Path, tmp_path: Path, capsys) -> 
     assert main(["import-run", str(tmp_path / "orb"), str(tmp_path / "run2"), "--from",
                  "tum"]) == 2
     assert "--from tum needs --method and --sequence" in capsys.readouterr().err
+
+
+# ---------------------------------------------------------------- validation at import (issue 36)
+def _no_leftovers(folder: Path) -> bool:
+    return not [p for p in folder.iterdir() if p.name.startswith(".")]
+
+
+def _tum_estimate(path: Path, seq: Sequence, offset_s: float = 0.0) -> Path:
+    from egs_bench.geometry import write_tum
+
+    write_tum(path, seq.timestamps_s + offset_s, _estimated(seq))
+    return path
+
+
+def _renders(folder: Path, seq: Sequence, frames=(0, 5), size=None) -> Path:
+    folder.mkdir()
+    for f in frames:
+        img = np.full((*(size or (seq.height, seq.width)), 3), 40 + f, dtype=np.uint8)
+        cv2.imwrite(str(folder / f"{f:06d}.png"), img)
+    return folder
+
+
+def _truncate(path: Path) -> None:
+    data = path.read_bytes()
+    path.write_bytes(data[: len(data) // 2])
+
+
+def test_tum_import_validates_as_eval_would(seq: Sequence, tmp_path: Path, capsys) -> None:
+    """Issue 36 item 4: a missing or corrupt sequence folder, an estimate 100 s off the ground
+    truth, renders of the wrong size or truncated: each is refused with one line naming the
+    file, and no run folder is left (a retry needs no --overwrite)."""
+    from egs_bench.baselines.import_runs import import_tum_run
+    from egs_bench.cli import main
+
+    est = _tum_estimate(tmp_path / "est.txt", seq)
+    off = _tum_estimate(tmp_path / "off.txt", seq, offset_s=100.0)
+    broken = tmp_path / "broken_seq"
+    shutil.copytree(seq.path, broken)
+    (broken / "meta.yaml").write_bytes(b"\x00\xff binary")
+    small = _renders(tmp_path / "small", seq, size=(24, 32))
+    cut = _renders(tmp_path / "cut", seq)
+    _truncate(cut / "000005.png")
+    beyond = _renders(tmp_path / "beyond", seq, frames=(0, 12))
+    out = tmp_path / "run"
+    cases = [
+        ([str(est), "--sequence-path", str(tmp_path / "nowhere")], "nowhere"),
+        ([str(est), "--sequence-path", str(broken)], "meta.yaml"),
+        ([str(off), "--sequence-path", str(seq.path)], "off.txt: no timestamp overlap"),
+        ([str(off), "--groundtruth", str(seq.path / "groundtruth.txt")],
+         "off.txt: no timestamp overlap"),
+        ([str(est), "--sequence-path", str(seq.path), "--renders", str(small)],
+         "000000.png: render is 32x24, the sequence is 64x48"),
+        ([str(est), "--sequence-path", str(seq.path), "--renders", str(cut)],
+         "000005.png: cannot read image"),
+        ([str(est), "--sequence-path", str(seq.path), "--renders", str(beyond)],
+         "frame 12, beyond the sequence's 10 frames"),
+    ]
+    for argv, message in cases:
+        code = main(["import-run", *argv, str(out), "--from", "tum", "-m", "ext", "-s",
+                     "plane"])
+        err = capsys.readouterr().err
+        assert code == 3, (argv, err)
+        assert message in err and len(err.strip().splitlines()) == 1, (argv, err)
+        assert not out.exists() and _no_leftovers(tmp_path), argv
+    # the fixed inputs import into the same folder without --overwrite
+    run = import_tum_run(est, out, method="ext", sequence_name="plane",
+                         sequence_path=seq.path, renders_dir=_renders(tmp_path / "ok", seq))
+    assert run.read_status().state == "done" and run.render_indices() == [0, 5]
+    assert run.path == out and evaluate_run(out)["ate"]["n_matched"] == len(seq)
+
+
+def test_external_import_with_a_bad_render_leaves_nothing(seq: Sequence, export: Path,
+                                                          tmp_path: Path, capsys) -> None:
+    """A truncated Photo-SLAM render (decoded before anything is written) and a failure while
+    writing (the staging folder is removed): neither leaves a folder that blocks a retry."""
+    from egs_bench.cli import main
+
+    _photoslam_folder(tmp_path / "ps", seq, export)
+    jpg = tmp_path / "ps" / "30000_shutdown" / "image" / "30000_1.jpg"
+    good = jpg.read_bytes()
+    _truncate(jpg)
+    out = tmp_path / "run"
+    assert main(["import-run", str(tmp_path / "ps"), str(out), "--from", "photoslam",
+                 "--export", str(export)]) == 3
+    err = capsys.readouterr().err
+    assert "30000_1.jpg" in err and len(err.strip().splitlines()) == 1
+    assert not out.exists() and _no_leftovers(tmp_path)
+    jpg.write_bytes(good)
+    # a failure after the run folder was created (disk full while writing a render)
+    from egs_bench.runs.folder import RunFolder
+
+    def full_disk(self, index, image):
+        raise OSError(28, "No space left on device")
+
+    original = RunFolder.write_render
+    RunFolder.write_render = full_disk  # type: ignore[method-assign]
+    try:
+        with pytest.raises(OSError, match="No space left"):
+            import_external_run(tmp_path / "ps", out, fmt="photoslam", export_dir=export)
+    finally:
+        RunFolder.write_render = original  # type: ignore[method-assign]
+    assert not out.exists() and _no_leftovers(tmp_path)
+    run = import_external_run(tmp_path / "ps", out, fmt="photoslam", export_dir=export)
+    assert run.read_status().state == "done" and run.render_indices() == [0, 4, 8]
+    # replacing an existing import keeps the user's own files (rewritten in place)
+    (out / "notes.txt").write_text("mine")
+    import_external_run(tmp_path / "ps", out, fmt="photoslam", export_dir=export,
+                        overwrite=True)
+    assert (out / "notes.txt").read_text() == "mine"
+
+
+def test_monogs_keyframes_report_their_real_coverage(seq: Sequence, export: Path,
+                                                     tmp_path: Path) -> None:
+    """Issue 36 item 4: MonoGS's keyframe-only trj_final.json (keyframes 0, 3, 6 of 10 frames,
+    the last keyframe not the last frame) covers the 10 frames MonoGS read: complete under the
+    monogs protocol, which scores keyframes; under the all-frame protocol it covers its 3
+    poses, not "7 of 10" (the last keyframe's index + 1)."""
+    from egs_bench.eval.results import collect_results
+
+    _monogs_result(tmp_path / "mono", seq, uids=(0, 3, 6))
+    runs = tmp_path / "runs"
+    run = import_external_run(tmp_path / "mono", runs / "monogs", fmt="monogs",
+                              export_dir=export)
+    assert run.estimate["poses"] == "keyframes" and run.estimate["frames_processed"] == 10
+    m = evaluate_run(run.path, "monogs", write=False)
+    assert m["coverage"] == {"frames_processed": 10, "frames_in_sequence": 10}
+    assert not any("covers" in n for n in m["notes"]), m["notes"]
+    (result,) = collect_results(runs, protocol="monogs", evaluate_missing=True).runs
+    assert result.status == "ok" and result.complete
+    m = evaluate_run(run.path, "egs", write=False)
+    assert m["coverage"] == {"frames_processed": 3, "frames_in_sequence": 10}
+    assert any("ATE over 3 of 10 frames: the estimate holds keyframes poses only" in n
+               for n in m["notes"]), m["notes"]
+    (result,) = collect_results(runs, protocol="egs").runs
+    assert result.status == "incomplete" and result.reason == "covers 3 of 10 frames"
+    # an intermediate trj_<n>.json: MonoGS was still running, coverage ends at its last pose
+    (tmp_path / "mono" / "plot" / "trj_final.json").rename(tmp_path / "mono" / "plot" /
+                                                           "trj_00006.json")
+    run = import_external_run(tmp_path / "mono" / "plot" / "trj_00006.json",
+                              tmp_path / "mid", fmt="monogs", export_dir=export)
+    assert "frames_processed" not in run.estimate
+    assert evaluate_run(run.path, "monogs", write=False)["coverage"]["frames_processed"] == 7
