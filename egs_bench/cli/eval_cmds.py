@@ -11,6 +11,7 @@ from pathlib import Path
 import typer
 from rich.console import Console
 from rich.table import Table
+from typer.core import TyperCommand
 
 from egs_bench.cli.app import app
 from egs_bench.eval.protocols import DEFAULT_PROTOCOL
@@ -77,62 +78,158 @@ def _print_stats(title: str, unit: str, r) -> None:  # noqa: ANN001 (AteResult |
 _EST_FIRST = typer.Option(False, "--est-first",
                           help="The files are given as EST GT (egs-bench's former order) "
                                "instead of GT EST.")
+_ALIGN_VALUES = ("se3", "sim3", "none")
+_ALIGN_HELP = "se3, sim3 or none; evo's flags also work: -a alone is se3, -as is sim3"
 
 
-@app.command("ate")
+def _is_not_a_value(rest: list[str]) -> bool:
+    """Whether the token after ``-a`` is something else than its value: nothing, an option, or
+    a file (evo's ``-a`` takes no value); a bad value such as ``affine`` stays a value, so that
+    its message names it."""
+    if not rest or rest[0] in _ALIGN_VALUES:
+        return not rest
+    nxt = rest[0]
+    return nxt.startswith("-") or "/" in nxt or "." in nxt or Path(nxt).exists()
+
+
+def _evo_alignment_args(args: list[str]) -> list[str]:
+    """``args`` with evo's alignment flags spelled as ``--align VALUE``: ``-a`` / ``--align``
+    without a value is SE(3), ``-as`` / ``-sa`` and ``-a ... -s`` (``--correct_scale``) are
+    Sim(3); ``-a VALUE`` is left as it is.
+
+    Raises:
+        ConfigError: ``-s`` without ``-a`` (evo's scale-only correction, not offered).
+    """
+    from egs_bench.errors import ConfigError
+
+    out: list[str] = []
+    scale, flag_at, i = False, None, 0
+    while i < len(args):
+        arg = args[i]
+        if arg == "--":
+            out += args[i:]
+            break
+        if arg in ("-as", "-sa"):
+            out += ["--align", "sim3"]
+        elif arg in ("-s", "--correct_scale"):
+            scale = True
+        elif arg in ("-a", "--align") and _is_not_a_value(args[i + 1:]):
+            out += ["--align", "se3"]
+            flag_at = len(out) - 1
+        else:
+            out.append(arg)
+        i += 1
+    if scale:
+        if flag_at is None:
+            raise ConfigError("-s / --correct_scale needs -a (evo's -as: Sim(3) alignment); "
+                              "scale correction without alignment is not offered")
+        out[flag_at] = "sim3"
+    return out
+
+
+class _EvoSpellings(TyperCommand):
+    """A command that also reads evo's alignment flags (:func:`_evo_alignment_args`)."""
+
+    def parse_args(self, ctx, args: list[str]) -> list[str]:  # noqa: ANN001 (click.Context)
+        return super().parse_args(ctx, _evo_alignment_args(args))
+
+
+def _save_option(metric: str):  # noqa: ANN202 (a typer OptionInfo)
+    return typer.Option(None, "--save-results", "--save_results",
+                        help=f"Also write the {metric} statistics, settings and per-pose errors "
+                             "to this JSON file (evo's option; JSON, not evo's .zip).")
+
+
+_OVERWRITE = typer.Option(False, "--overwrite", help="Replace an existing --save-results file.")
+_MAX_DIFF = typer.Option(0.01, "--max-diff", "--t_max_diff",
+                         help="Timestamp association tolerance in seconds (evo's --t_max_diff).")
+_RELATIONS_HELP = "trans_part (m), angle_deg, angle_rad, rot_part, full, point_distance"
+
+
+def _warn(notes: tuple[str, ...]) -> None:
+    for note in notes:
+        _out.print(f"warning: {note}", markup=False)
+
+
+@app.command("ate", cls=_EvoSpellings)
 def ate_cmd(
     groundtruth: Path = typer.Argument(..., help="Ground-truth (reference) trajectory, TUM."),
     estimate: Path = typer.Argument(..., help="Estimated trajectory, TUM format."),
-    align: str = typer.Option("se3", "--align", "-a", help="Alignment: se3, sim3 or none."),
-    max_diff: float = typer.Option(0.01, "--max-diff",
-                                   help="Timestamp association tolerance in seconds."),
+    align: str = typer.Option("se3", "--align", "-a", help=f"Alignment: {_ALIGN_HELP}."),
+    relation: str = typer.Option("trans_part", "--pose-relation", "--pose_relation", "-r",
+                                 help=f"Pose relation of the error: {_RELATIONS_HELP} "
+                                      "(evo_ape's -r; angle_deg is the rotation ATE)."),
+    max_diff: float = _MAX_DIFF,
+    save_results: Path | None = _save_option("ATE"),
+    overwrite: bool = _OVERWRITE,
     est_first: bool = _EST_FIRST,
 ) -> None:
-    """ATE (translation, after alignment) of two TUM files, computed with evo.
+    """ATE (after alignment) of two TUM files, computed with evo.
 
     Files in evo's order: `egs-bench ate GT EST` = `evo_ape tum GT EST -a`.
     """
-    from egs_bench.eval.ate import ate_from_files
+    from egs_bench.eval.ate import check_results_path, results_json, trajectory_ate
+    from egs_bench.fileio import write_text_atomic
 
     gt, est = _roles(groundtruth, estimate, est_first, "ate")
-    r = ate_from_files(est, gt, align=align, max_diff_s=max_diff)
-    _print_stats(f"ATE ({r.alignment} alignment, {r.n_matched} poses matched within "
-                 f"{r.max_diff_s} s)\nreference {gt}\nestimate  {est}", "m", r)
+    if save_results is not None:
+        check_results_path(save_results, overwrite=overwrite, inputs=[gt, est])
+    r = trajectory_ate(gt, est, align=align, relation=relation, max_diff_s=max_diff)
+    _warn(r.notes)
+    what = "" if r.relation == "trans_part" else f" {r.relation}"
+    _print_stats(f"ATE{what} ({r.alignment} alignment, {r.n_matched} poses matched within "
+                 f"{r.max_diff_s} s)\nreference {gt}\nestimate  {est}", r.unit, r)
+    if save_results is not None:
+        write_text_atomic(save_results, results_json(r, metric="ATE", reference=gt,
+                                                     estimate=est))
+        _out.print(f"wrote {save_results}", markup=False)
 
 
-@app.command("rpe")
+@app.command("rpe", cls=_EvoSpellings)
 def rpe_cmd(
     groundtruth: Path = typer.Argument(..., help="Ground-truth (reference) trajectory, TUM."),
     estimate: Path = typer.Argument(..., help="Estimated trajectory, TUM format."),
-    relation: str = typer.Option("trans_part", "--pose-relation", "-r",
-                                 help="trans_part (m), angle_deg, angle_rad, rot_part, full, "
-                                      "point_distance (evo_rpe's -r)."),
+    relation: str = typer.Option("trans_part", "--pose-relation", "--pose_relation", "-r",
+                                 help=f"{_RELATIONS_HELP} (evo_rpe's -r)."),
     delta: float = typer.Option(1.0, "--delta", "-d", help="Pair spacing, in --delta-unit."),
-    delta_unit: str = typer.Option("f", "--delta-unit", "-u",
+    delta_unit: str = typer.Option("f", "--delta-unit", "--delta_unit", "-u",
                                    help="f (frames), m (metres of path), d / r (degrees / "
                                         "radians of rotation)."),
-    all_pairs: bool = typer.Option(False, "--all-pairs",
+    all_pairs: bool = typer.Option(False, "--all-pairs", "--all_pairs",
                                    help="All pairs delta apart instead of consecutive pairs."),
+    delta_tol: float = typer.Option(0.1, "--delta-tol", "--delta_tol",
+                                    help="Relative tolerance of delta with --all-pairs."),
     align: str = typer.Option("none", "--align", "-a",
-                              help="Alignment: none (evo_rpe's default), se3 or sim3."),
-    max_diff: float = typer.Option(0.01, "--max-diff",
-                                   help="Timestamp association tolerance in seconds."),
+                              help=f"Alignment (evo_rpe's default: none): {_ALIGN_HELP}."),
+    max_diff: float = _MAX_DIFF,
+    save_results: Path | None = _save_option("RPE"),
+    overwrite: bool = _OVERWRITE,
     est_first: bool = _EST_FIRST,
 ) -> None:
     """RPE (relative pose error) of two TUM files, computed with evo.
 
     `egs-bench rpe GT EST -r angle_deg -d 1 -u m` = `evo_rpe tum GT EST -r angle_deg -d 1 -u m`.
     """
-    from egs_bench.eval.rpe import rpe_from_files
+    from egs_bench.eval.ate import check_results_path, results_json
+    from egs_bench.eval.rpe import trajectory_rpe
+    from egs_bench.fileio import write_text_atomic
 
     gt, est = _roles(groundtruth, estimate, est_first, "rpe")
-    r = rpe_from_files(est, gt, relation=relation, delta=delta, delta_unit=delta_unit,
-                       all_pairs=all_pairs, align=align, max_diff_s=max_diff)
+    if save_results is not None:
+        check_results_path(save_results, overwrite=overwrite, inputs=[gt, est])
+    r = trajectory_rpe(gt, est, relation=relation, delta=delta, delta_unit=delta_unit,
+                       all_pairs=all_pairs, align=align, max_diff_s=max_diff,
+                       rel_delta_tol=delta_tol)
+    _warn(r.notes)
     pairs = "all pairs" if r.all_pairs else "consecutive pairs"
     aligned = "no" if r.alignment == "none" else r.alignment
     _print_stats(f"RPE {r.relation} for delta {r.delta:g} {r.delta_unit} ({pairs}, "
                  f"{r.n_pairs} pairs of {r.n_matched} matched poses, {aligned} "
                  f"alignment)\nreference {gt}\nestimate  {est}", r.unit, r)
+    if save_results is not None:
+        write_text_atomic(save_results, results_json(r, metric="RPE", reference=gt,
+                                                     estimate=est))
+        _out.print(f"wrote {save_results}", markup=False)
 
 
 @app.command("compare-images")

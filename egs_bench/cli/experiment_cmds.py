@@ -87,14 +87,7 @@ def regress_cmd(
 ) -> None:
     """Compare runs with a baseline, metric by metric (direction-aware tolerances); exit 1 on a
     regression or a missing result."""
-    from egs_bench.experiments.regress import (
-        compare,
-        failed,
-        load_tolerances,
-        render,
-        summary_of,
-        update_baseline,
-    )
+    from egs_bench.experiments.regress import check, failed, render, update_baseline
     from egs_bench.fileio import write_text_atomic
     from egs_bench.outputs import prepare_output
 
@@ -106,8 +99,7 @@ def regress_cmd(
         _out.print(f"wrote {baseline} ({len(df)} rows from {runs})")
         return
     keys = [m.strip() for m in metrics.split(",") if m.strip()] if metrics else None
-    table = compare(summary_of(baseline, protocol), summary_of(runs, protocol),
-                    load_tolerances(tolerances), keys)
+    table = check(baseline, runs, tolerances=tolerances, metrics=keys, protocol=protocol)
     typer.echo(render(table), nl=False)
     if output is not None:
         write_text_atomic(output, table.to_csv(index=False, lineterminator="\n"))

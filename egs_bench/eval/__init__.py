@@ -15,4 +15,26 @@ Modules (each with one job):
 - :mod:`~egs_bench.eval.plots`: trajectory, ATE-over-time and qualitative figures;
 - :mod:`~egs_bench.eval.figures`: comparisons across methods (trajectories, zoomed grids);
 - :mod:`~egs_bench.eval.compare`: two-image comparison (files read by :mod:`egs_bench.images`).
+
+The Python API of the two trajectory metrics takes evo's and the CLI's order, ground truth
+first: ``egs_bench.eval.trajectory_ate(GT, EST, align="se3")`` (= ``egs-bench ate GT EST``)
+and ``egs_bench.eval.trajectory_rpe(GT, EST, relation="angle_deg")``.
 """
+
+from typing import Any
+
+__all__ = ["trajectory_ate", "trajectory_rpe"]
+
+
+def __getattr__(name: str) -> Any:
+    # imported on first use, so that importing a light module of the package (the CLI imports
+    # the protocols) does not load the trajectory code
+    if name == "trajectory_ate":
+        from egs_bench.eval.ate import trajectory_ate
+
+        return trajectory_ate
+    if name == "trajectory_rpe":
+        from egs_bench.eval.rpe import trajectory_rpe
+
+        return trajectory_rpe
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -17,7 +17,7 @@ import numpy as np
 
 from egs_bench import __version__
 from egs_bench.errors import InputError
-from egs_bench.eval.ate import compute_ate
+from egs_bench.eval.ate import MIN_MATCHED_POSES, AteResult, compute_ate
 from egs_bench.eval.image_metrics import psnr, psnr_masked, ssim
 from egs_bench.eval.protocols import DEFAULT_PROTOCOL, Protocol, get_protocol
 from egs_bench.fileio import read_text, write_text_atomic
@@ -67,7 +67,11 @@ def _ground_truth(run: RunFolder, seq) -> tuple[Trajectory, str]:
 
 def evaluate_ate(run: RunFolder, protocol: Protocol, seq=None) -> dict[str, Any]:
     """ATE of the run under ``protocol``; returns the summary dict stored in ``metrics.json``."""
-    result = compute_run_ate(run, protocol, seq)
+    return ate_summary(run, protocol, compute_run_ate(run, protocol, seq))
+
+
+def ate_summary(run: RunFolder, protocol: Protocol, result: AteResult) -> dict[str, Any]:
+    """The ``ate`` entry of ``metrics.json`` for a run's :class:`AteResult`."""
     summary = result.summary()
     summary["frames"] = protocol.ate_frames
     summary["estimate_poses"] = run.estimate["poses"]
@@ -89,8 +93,14 @@ def evaluate_rpe(run: RunFolder, protocol: Protocol, seq=None) -> dict[str, Any]
     return out
 
 
-def compute_run_ate(run: RunFolder, protocol: Protocol, seq=None):  # -> AteResult
-    """The :class:`~egs_bench.eval.ate.AteResult` of a run under ``protocol``."""
+def compute_run_ate(run: RunFolder, protocol: Protocol, seq=None) -> AteResult:
+    """The :class:`~egs_bench.eval.ate.AteResult` of a run under ``protocol``.
+
+    Raises:
+        InputError: a bad file of the run or sequence; under a keyframe protocol also a missing
+            ``keyframes.txt``, or one listing fewer keyframes than the alignment needs (the
+            message names ``keyframes.txt``, not the trajectories cut down to it).
+    """
     est = run.read_trajectory()
     gt, gt_name = _ground_truth(run, seq)
     if protocol.ate_frames == "keyframes":
@@ -98,6 +108,11 @@ def compute_run_ate(run: RunFolder, protocol: Protocol, seq=None):  # -> AteResu
         if keyframes is None:
             raise InputError(run.path / "keyframes.txt",
                              f"not found; protocol {protocol.name!r} evaluates ATE on keyframes")
+        if len(keyframes) < MIN_MATCHED_POSES:
+            raise InputError(run.path / "keyframes.txt",
+                             f"lists {len(keyframes)} keyframe(s); protocol {protocol.name!r} "
+                             f"evaluates ATE on keyframes and the alignment needs at least "
+                             f"{MIN_MATCHED_POSES} (use --protocol egs for all frames)")
         if seq is not None and run.groundtruth_path is None:
             if keyframes.max(initial=-1) >= len(gt):
                 raise InputError(run.path / "keyframes.txt",
@@ -307,7 +322,9 @@ def evaluate_run(run_dir: str | Path, protocol: str | Protocol = DEFAULT_PROTOCO
         notes.append(f"the run was interrupted ({status.reason}); metrics cover what it wrote")
     seq = open_sequence(run.sequence_path) if run.sequence_path is not None else None
 
-    ate = evaluate_ate(run, proto, seq)
+    ate_result = compute_run_ate(run, proto, seq)
+    ate = ate_summary(run, proto, ate_result)
+    notes += ate_result.notes
     rpe = evaluate_rpe(run, proto, seq)
     rendering = None
     coverage = None

@@ -285,8 +285,8 @@ def render_csv(board: Leaderboard, by: str = "sequence") -> str:
 
 
 def summary_frame(board: Leaderboard) -> pd.DataFrame:
-    """One row per (method, settings, sequence) with run counts, a status and mean/std columns
-    in stored units (``ate_rmse_m_mean``, ``ate_rmse_m_std``, ...)."""
+    """One row per (method, settings, sequence) with the frames its runs cover, run counts, a
+    status and mean/std columns in stored units (``ate_rmse_m_mean``, ``ate_rmse_m_std``, ...)."""
     rows = []
     for row in board.rows:
         settings = row.label[len(row.method):].removesuffix(" [partial]").strip()
@@ -302,8 +302,13 @@ def summary_frame(board: Leaderboard) -> pd.DataFrame:
                     "failed" if not cell.evaluated else "mixed"))
             if status == "ok" and not row.complete:
                 status = "incomplete"
+            # the frames the runs cover ("6/12" when they differ, "" when unknown), so that a
+            # regression check never compares results over different frames
+            frames = sorted({r.frames_processed for r in cell.runs
+                             if r.frames_processed is not None})
             rec = {"method": row.method, "settings": settings, "sequence": s,
-                   "complete": row.complete, "status": status, "n_runs": len(cell.runs),
+                   "complete": row.complete, "frames": "/".join(map(str, frames)),
+                   "status": status, "n_runs": len(cell.runs),
                    "n_evaluated": len(cell.evaluated), "n_tracking_lost": counts["tracking_lost"],
                    "n_failed": len(cell.runs) - len(cell.evaluated) - counts["tracking_lost"]}
             for k in board.metrics:

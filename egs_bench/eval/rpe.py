@@ -16,25 +16,25 @@ of the whole trajectory); Sim(3) alignment does, through its scale.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from egs_bench.errors import ConfigError, InputError
-from egs_bench.eval.ate import DEFAULT_MAX_DIFF_S, associate
+from egs_bench.eval.ate import (
+    DEFAULT_MAX_DIFF_S,
+    RELATIONS,
+    associate,
+    check_relation,
+    load_trajectory,
+)
 from egs_bench.geometry import Trajectory, read_tum
 
-RELATIONS: dict[str, tuple[str, str]] = {
-    # our name (= evo_rpe's -r choice): (evo PoseRelation member, unit of the error)
-    "trans_part": ("translation_part", "m"),
-    "angle_deg": ("rotation_angle_deg", "deg"),
-    "angle_rad": ("rotation_angle_rad", "rad"),
-    "rot_part": ("rotation_part", "none"),
-    "full": ("full_transformation", "none"),
-    "point_distance": ("point_distance", "m"),
-}
+__all__ = ["DELTA_UNITS", "RELATIONS", "RpeResult", "compute_rpe", "rpe_from_files",
+           "standard_rpe", "trajectory_rpe"]
+
 DELTA_UNITS: dict[str, str] = {
     # evo_rpe's -u letters and their long names: evo Unit member
     "f": "frames", "frames": "frames",
@@ -60,6 +60,7 @@ class RpeResult:
         rmse, mean, median, std, min, max: statistics of the per-pair error, in ``unit``.
         timestamps: time of the second pose of each pair, [P] seconds.
         errors: per-pair error, [P] in ``unit``.
+        notes: what was done to the input on the way (merged duplicate time stamps).
     """
 
     relation: str
@@ -79,6 +80,7 @@ class RpeResult:
     max: float
     timestamps: np.ndarray
     errors: np.ndarray
+    notes: tuple[str, ...] = field(default=())
 
     def summary(self) -> dict[str, Any]:
         """The scalar results as a plain dict (for ``metrics.json``)."""
@@ -105,7 +107,8 @@ def compute_rpe(
     est_name: str | Path = "estimate",
     gt_name: str | Path = "ground truth",
 ) -> RpeResult:
-    """RPE of ``est`` against ``gt`` (evo: association, alignment, ``metrics.RPE``).
+    """RPE of ``est`` against ``gt`` (evo: association, alignment, ``metrics.RPE``); the
+    estimate comes first here, :func:`trajectory_rpe` takes evo's GT EST order.
 
     Args:
         est: estimated trajectory (poses ``T_wc``, timestamps in seconds).
@@ -130,9 +133,7 @@ def compute_rpe(
     from evo.core.filters import FilterException
     from evo.core.geometry import GeometryException
 
-    if relation not in RELATIONS:
-        raise ConfigError(f"unknown RPE relation {relation!r}; choose one of "
-                          f"{', '.join(RELATIONS)}")
+    check_relation(relation, "RPE")
     if delta_unit not in DELTA_UNITS:
         raise ConfigError(f"unknown delta unit {delta_unit!r}; choose one of f, m, d, r")
     unit = DELTA_UNITS[delta_unit]
@@ -140,8 +141,8 @@ def compute_rpe(
         raise ConfigError(f"RPE delta must be > 0, got {delta}")
     if unit == "frames" and float(delta) != int(delta):
         raise ConfigError(f"RPE delta in frames must be an integer, got {delta}")
-    ref_evo, est_evo = associate(est, gt, align=align, max_diff_s=max_diff_s,
-                                 est_name=est_name, gt_name=gt_name, what="RPE")
+    ref_evo, est_evo, notes = associate(est, gt, align=align, max_diff_s=max_diff_s,
+                                        est_name=est_name, gt_name=gt_name, what="RPE")
     n_matched = int(est_evo.num_poses)
     scale = 1.0
     if align != "none":
@@ -170,15 +171,40 @@ def compute_rpe(
         n_pairs=int(len(metric.error)), rmse=float(stats["rmse"]), mean=float(stats["mean"]),
         median=float(stats["median"]), std=float(stats["std"]), min=float(stats["min"]),
         max=float(stats["max"]), timestamps=stamps,
-        errors=np.asarray(metric.error, dtype=np.float64),
+        errors=np.asarray(metric.error, dtype=np.float64), notes=notes,
     )
 
 
 def rpe_from_files(est_path: str | Path, gt_path: str | Path, **options: Any) -> RpeResult:
-    """RPE of two TUM files (``options`` as for :func:`compute_rpe`); bad files raise
-    :class:`InputError` naming the file."""
+    """RPE of two TUM files, estimate first (``options`` as for :func:`compute_rpe`;
+    :func:`trajectory_rpe` takes GT EST); bad files raise :class:`InputError` naming the file."""
     return compute_rpe(read_tum(est_path), read_tum(gt_path), est_name=est_path,
                        gt_name=gt_path, **options)
+
+
+def trajectory_rpe(gt: Trajectory | str | Path, est: Trajectory | str | Path, *,
+                   relation: str = "trans_part", delta: float = 1.0, delta_unit: str = "f",
+                   all_pairs: bool = False, align: str = "none",
+                   max_diff_s: float = DEFAULT_MAX_DIFF_S,
+                   rel_delta_tol: float = DEFAULT_REL_DELTA_TOL) -> RpeResult:
+    """RPE of ``est`` against ``gt`` in evo's and the CLI's order, ground truth first:
+    ``trajectory_rpe(GT, EST, relation="angle_deg", delta=1, delta_unit="m")`` =
+    ``egs-bench rpe GT EST -r angle_deg -d 1 -u m`` = ``evo_rpe tum GT EST -r angle_deg -d 1 -u
+    m``.
+
+    Args:
+        gt, est: trajectories (poses ``T_wc``, seconds) or paths of TUM files.
+        relation, delta, delta_unit, all_pairs, align, max_diff_s, rel_delta_tol: as for
+            :func:`compute_rpe`.
+
+    Raises:
+        ConfigError, InputError: as for :func:`compute_rpe` (bad files name the file).
+    """
+    gt_traj, gt_name = load_trajectory(gt, "ground truth")
+    est_traj, est_name = load_trajectory(est, "estimate")
+    return compute_rpe(est_traj, gt_traj, relation=relation, delta=delta, delta_unit=delta_unit,
+                       all_pairs=all_pairs, align=align, max_diff_s=max_diff_s,
+                       rel_delta_tol=rel_delta_tol, est_name=est_name, gt_name=gt_name)
 
 
 def standard_rpe(est: Trajectory, gt: Trajectory, *, max_diff_s: float = DEFAULT_MAX_DIFF_S,
