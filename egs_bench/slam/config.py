@@ -202,7 +202,9 @@ class SlamConfig:
     mapping: MappingConfig = field(default_factory=MappingConfig)
     budget: BudgetConfig = field(default_factory=BudgetConfig)
     runtime: RuntimeConfig = field(default_factory=RuntimeConfig)
-    extra: dict[str, Any] = field(default_factory=dict)  # free-form, for user methods
+    # Free-form values for user components (``extra.NAME``), e.g. the weight of a loss term
+    # that a researcher adds (docs/guide/extending.md).
+    extra: dict[str, Any] = field(default_factory=dict)
 
     # ------------------------------------------------------------------ derived values
     @property
@@ -219,11 +221,16 @@ class SlamConfig:
             ConfigError: an unknown key.
         """
         by_group: dict[str, dict[str, Any]] = {}
+        extra = dict(self.extra)
         for key, value in changes.items():
+            if key.startswith(EXTRA_PREFIX):
+                extra[_extra_name(key)] = value
+                continue
             group, name = resolve_key(key)
             by_group.setdefault(group, {})[name] = value
-        new = {g: dataclasses.replace(getattr(self, g), **v) for g, v in by_group.items()}
-        return dataclasses.replace(self, **new)
+        new: dict[str, Any] = {g: dataclasses.replace(getattr(self, g), **v)
+                               for g, v in by_group.items()}
+        return dataclasses.replace(self, **new, extra=extra)
 
     def get(self, key: str) -> Any:
         """The value of ``group.field`` or a short name."""
@@ -355,6 +362,18 @@ def _type_name(kind: Any) -> str:
         getattr(kind, "__name__", str(kind)), str(kind))
 
 
+EXTRA_PREFIX = "extra."
+
+
+def _extra_name(key: str) -> str:
+    """``"extra.lambda_tv"`` -> ``"lambda_tv"``; refuses an empty or dotted name."""
+    name = key[len(EXTRA_PREFIX):]
+    if not name.isidentifier():
+        raise ConfigError(f"SLAM option {key!r}: extra.NAME needs a name made of letters, "
+                          "digits and underscores")
+    return name
+
+
 def resolve_key(key: str) -> tuple[str, str]:
     """``"loss.lambda_d"`` or ``"lambda_d"`` -> ``("loss", "lambda_d")``.
 
@@ -470,13 +489,19 @@ def parse_overrides(items: list[str]) -> dict[str, Any]:
         key = key.strip()
         if not sep or not key:
             raise ConfigError(f"option override {item!r} is not KEY=VALUE")
-        group, name = resolve_key(key)
         try:
             value = yaml.safe_load(raw) if raw.strip() else None
         except yaml.YAMLError:
             value = raw
         if isinstance(value, str) and value.lower() in ("nan", "inf", "-inf", ".nan", ".inf"):
             value = float(value.lstrip("."))
+        if key.startswith(EXTRA_PREFIX):
+            name = _extra_name(key)
+            if isinstance(value, float) and not math.isfinite(value):
+                raise ConfigError(f"{key} must be a finite number, got {raw!r}")
+            out[f"{EXTRA_PREFIX}{name}"] = value
+            continue
+        group, name = resolve_key(key)
         kind = typing.get_type_hints(GROUPS[group])[name]
         if kind is float or float in typing.get_args(kind):
             if isinstance(value, int) and not isinstance(value, bool):

@@ -368,6 +368,21 @@ def test_parse_overrides_types_and_errors() -> None:
             parse_overrides([bad])
 
 
+def test_extra_options_for_user_components() -> None:
+    """``extra.NAME`` sets a free value a user's component reads (e.g. a loss weight); it is
+    kept in the resolved configuration and survives its round trip."""
+    from egs_bench.slam.config import SlamConfig, parse_overrides
+
+    got = parse_overrides(["extra.lambda_tv=0.5", "extra.mode=fast"])
+    assert got == {"extra.lambda_tv": 0.5, "extra.mode": "fast"}
+    cfg = cpu_preset().replace(**got)
+    assert cfg.extra == {"lambda_tv": 0.5, "mode": "fast"}
+    assert SlamConfig.from_dict(cfg.to_dict()) == cfg
+    for bad in ("extra.=1", "extra.a.b=1", "extra.x=nan"):
+        with pytest.raises(ConfigError, match="extra"):
+            parse_overrides([bad])
+
+
 def test_every_option_is_validated_and_presets_differ_only_in_budget() -> None:
     from egs_bench.slam.config import GROUPS, SlamConfig, paper_preset
 
