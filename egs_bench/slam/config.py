@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 from typing import Any, Literal
 
 from egs_bench.errors import ConfigError
+from egs_bench.slam.convergence import ConvergenceRule
 
 CrfKind = Literal["learnable", "srgb", "identity"]
 CrfInit = Literal["linear", "srgb"]
@@ -89,6 +90,13 @@ class TrackingConfig:
     max_translation_jump: float = 0.5   # m between consecutive frames, else divergence
     max_rotation_jump: float = 0.6      # rad between consecutive frames, else divergence
     divergence_loss_factor: float = 20.0  # final loss > factor x running median -> divergence
+    # When a frame may stop before its iteration budget (egs_bench/slam/convergence.py):
+    # "fixed" runs the budget (MonoGS's absolute step threshold aside), "relative-step" /
+    # "plateau" stop once the step / the loss's improvement has fallen below
+    # convergence_tolerance (relative) for convergence_patience iterations.
+    convergence: ConvergenceRule = "fixed"
+    convergence_tolerance: float = 0.1
+    convergence_patience: int = 3
 
 
 @dataclass(frozen=True)
@@ -283,6 +291,9 @@ class SlamConfig:
         for name in ("lr_exposure", "max_translation_jump", "max_rotation_jump",
                      "divergence_loss_factor"):
             _require(getattr(t, name) > 0, f"tracking.{name}", "must be > 0")
+        _require(0 < t.convergence_tolerance < 1, "tracking.convergence_tolerance",
+                 "must be in (0, 1)")
+        _require(t.convergence_patience >= 1, "tracking.convergence_patience", "must be >= 1")
         _require(k.interval >= 1, "keyframes.interval", "must be >= 1")
         for name in ("overlap", "cutoff"):
             _require(0 <= getattr(k, name) <= 1, f"keyframes.{name}", "must be in [0, 1]")

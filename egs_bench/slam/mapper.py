@@ -119,69 +119,19 @@ class Mapper:
             report: called as ``report(done, iterations)`` about 50 times over the round
                 (progress display).
         """
-        cfg = self.cfg
-        report_every = max(1, iterations // 50)
-        opt = self._gaussian_optimizer()
-        plan = self._host_plan(window, initial, fixed_end_pose)
-        refine, free_exposure = plan.refine, plan.free_exposure
-        use_exposure = cfg.method.exposure_compensation and not initial
-        like = self.gmap.means
-        loss_val = float("nan")
-        prune_due = False
-        for it in range(iterations):
-            raise_if_interrupted()  # a swallowed signal: map initialisation alone takes minutes
-            if report is not None and it % report_every == 0:
-                report(it, iterations)
-            views = self._pick_views(window, all_keyframes)
-            paths = {k: exposure_path(states[k].pose0_cw, states[k].pose1_cw,
-                                      observations[k].fractions) for k in views}
-            m = len(observations[views[0]].fractions)
-            exposure = np.array([[states[k].exp_a, states[k].exp_b] for k in views])
-            flat = [paths[k][0].ravel() for k in views]
-            packed = to_device(np.concatenate(flat + [exposure.ravel()]), like)
-            n_vm = 16 * m * len(views)
-            viewmats = packed[:n_vm].view(-1, 4, 4)
-            exp_ab = packed[n_vm:].view(-1, 2) if use_exposure else None
-            if refine:
-                viewmats.requires_grad_()
-            if free_exposure and exp_ab is not None:
-                exp_ab.requires_grad_()
-            targets = stack_targets([self._targets(k, observations[k]) for k in views])
-            res = self.ctx.render(self.gmap, viewmats)
-            total = blur_loss(res, targets, self.crf, exp_ab, cfg, tracking=False,
-                              eps=self.ctx.eps)
-            if not initial:
-                total = total + mapping_regulariser(self.gmap, cfg)
-            opt.zero_grad(set_to_none=True)
-            if self.crf_opt is not None:
-                self.crf_opt.zero_grad(set_to_none=True)
-            total.backward()
-            grads = []
-            if refine:
-                grads.append(flat_grad(viewmats))
-            if free_exposure and exp_ab is not None:
-                grads.append(flat_grad(exp_ab))
-            host = torch.cat([*grads, total.detach().reshape(1)]).cpu().numpy().astype(
-                np.float64)
-            loss_val = float(host[-1])
-            if not np.isfinite(loss_val):
-                break
-            self._gaussian_step(opt)
-            if self.crf_opt is not None and not initial:
-                self.crf_opt.step()
-            if refine or free_exposure:
-                self._host_step(plan, states, views, paths, host[:-1], m)
-            self.iteration += 1
-            every = cfg.budget.prune_every
-            if not initial and self.iteration % every == cfg.budget.prune_offset % every:
-                prune_due = True
-        self.gmap.requires_grad_(False)
-        with torch.no_grad():
-            if initial:
-                self._prune(cfg.mapping.init_prune_opacity)
-            elif prune_due:
-                self._prune(cfg.mapping.prune_opacity)
-        return loss_val
+        round_ = self.begin_round(states, observations, window, all_keyframes, iterations,
+                                  initial=initial, fixed_end_pose=fixed_end_pose, report=report)
+        round_.advance(iterations)
+        return round_.close()
+
+    def begin_round(self, states: dict[int, FrameState], observations: dict[int, FrameObs],
+                    window: list[int], all_keyframes: list[int], iterations: int,
+                    *, initial: bool = False, fixed_end_pose: int | None = 0,
+                    report: Callable[[int, int], None] | None = None) -> MappingRound:
+        """A mapping round of :meth:`optimise` (same arguments) to be run in slices:
+        ``advance(n)`` runs up to ``n`` of its iterations, ``close()`` ends it (pruning)."""
+        return MappingRound(self, states, observations, window, all_keyframes, iterations,
+                            initial, fixed_end_pose, report)
 
     def _host_plan(self, window: list[int], initial: bool, fixed_end_pose: int | None
                    ) -> _HostPlan:
@@ -286,3 +236,100 @@ class Mapper:
             return 0
         removed = self.gmap.prune(remove)
         return removed
+
+
+class MappingRound:
+    """One mapping round (map initialisation or a keyframe's) run in slices of iterations
+    (:meth:`Mapper.begin_round`); the map must not be edited from outside while it is open."""
+
+    def __init__(self, mapper: Mapper, states: dict[int, FrameState],
+                 observations: dict[int, FrameObs], window: list[int],
+                 all_keyframes: list[int], iterations: int, initial: bool,
+                 fixed_end_pose: int | None,
+                 report: Callable[[int, int], None] | None) -> None:
+        self.mapper, self.states, self.observations = mapper, states, observations
+        self.window, self.all_keyframes = list(window), list(all_keyframes)
+        self.iterations, self.initial, self.report = iterations, initial, report
+        self.report_every = max(1, iterations // 50)
+        self.opt = mapper._gaussian_optimizer()
+        self.plan = mapper._host_plan(window, initial, fixed_end_pose)
+        self.use_exposure = mapper.cfg.method.exposure_compensation and not initial
+        self.done = 0
+        self.loss = float("nan")
+        self.prune_due = False
+        self.stopped = False  # a non-finite loss ends the round early
+
+    @property
+    def remaining(self) -> int:
+        return 0 if self.stopped else self.iterations - self.done
+
+    def advance(self, n: int) -> None:
+        """Run up to ``n`` more iterations of the round."""
+        for _ in range(min(n, self.remaining)):
+            if not self._iteration():
+                self.stopped = True
+                return
+
+    def _iteration(self) -> bool:
+        """One mapping iteration; False when its loss is not finite."""
+        mapper, cfg = self.mapper, self.mapper.cfg
+        states, observations = self.states, self.observations
+        plan, initial = self.plan, self.initial
+        refine, free_exposure = plan.refine, plan.free_exposure
+        raise_if_interrupted()  # a swallowed signal: map initialisation alone takes minutes
+        if self.report is not None and self.done % self.report_every == 0:
+            self.report(self.done, self.iterations)
+        views = mapper._pick_views(self.window, self.all_keyframes)
+        paths = {k: exposure_path(states[k].pose0_cw, states[k].pose1_cw,
+                                  observations[k].fractions) for k in views}
+        m = len(observations[views[0]].fractions)
+        exposure = np.array([[states[k].exp_a, states[k].exp_b] for k in views])
+        flat = [paths[k][0].ravel() for k in views]
+        packed = to_device(np.concatenate(flat + [exposure.ravel()]), mapper.gmap.means)
+        n_vm = 16 * m * len(views)
+        viewmats = packed[:n_vm].view(-1, 4, 4)
+        exp_ab = packed[n_vm:].view(-1, 2) if self.use_exposure else None
+        if refine:
+            viewmats.requires_grad_()
+        if free_exposure and exp_ab is not None:
+            exp_ab.requires_grad_()
+        targets = stack_targets([mapper._targets(k, observations[k]) for k in views])
+        res = mapper.ctx.render(mapper.gmap, viewmats)
+        total = blur_loss(res, targets, mapper.crf, exp_ab, cfg, tracking=False, eps=mapper.ctx.eps)
+        if not initial:
+            total = total + mapping_regulariser(mapper.gmap, cfg)
+        self.opt.zero_grad(set_to_none=True)
+        if mapper.crf_opt is not None:
+            mapper.crf_opt.zero_grad(set_to_none=True)
+        total.backward()
+        grads = []
+        if refine:
+            grads.append(flat_grad(viewmats))
+        if free_exposure and exp_ab is not None:
+            grads.append(flat_grad(exp_ab))
+        host = torch.cat([*grads, total.detach().reshape(1)]).cpu().numpy().astype(np.float64)
+        self.done += 1
+        self.loss = float(host[-1])
+        if not np.isfinite(self.loss):
+            return False
+        mapper._gaussian_step(self.opt)
+        if mapper.crf_opt is not None and not initial:
+            mapper.crf_opt.step()
+        if refine or free_exposure:
+            mapper._host_step(plan, states, views, paths, host[:-1], m)
+        mapper.iteration += 1
+        every = cfg.budget.prune_every
+        if not initial and mapper.iteration % every == cfg.budget.prune_offset % every:
+            self.prune_due = True
+        return True
+
+    def close(self) -> float:
+        """End the round: freeze the map and prune it; returns the last loss."""
+        mapper, cfg = self.mapper, self.mapper.cfg
+        mapper.gmap.requires_grad_(False)
+        with torch.no_grad():
+            if self.initial:
+                mapper._prune(cfg.mapping.init_prune_opacity)
+            elif self.prune_due:
+                mapper._prune(cfg.mapping.prune_opacity)
+        return self.loss

@@ -26,6 +26,7 @@ from egs_bench.geometry import invert_pose
 from egs_bench.geometry.lie import se3_exp, so3_log, twist_gradient
 from egs_bench.render import GaussianMap
 from egs_bench.slam.context import SlamContext
+from egs_bench.slam.convergence import ConvergenceTest
 from egs_bench.slam.crf import CameraResponse
 from egs_bench.slam.exposure import exposure_path
 from egs_bench.slam.frames import FrameObs, FrameState
@@ -34,11 +35,27 @@ from egs_bench.slam.render_model import blur_loss, prepare_targets
 
 
 @dataclass
+class TrackTrace:
+    """What each tracking iteration did (diagnostics, :attr:`TrackRequest.trace`).
+
+    Attributes:
+        losses: the loss evaluated by each iteration [n] (before its step).
+        step_norms: the largest twist norm of the iteration's pose steps [n].
+        poses1_cw: ``T_tau`` after each iteration's step [n, 4, 4].
+    """
+
+    losses: np.ndarray
+    step_norms: np.ndarray
+    poses1_cw: np.ndarray
+
+
+@dataclass
 class TrackResult:
     state: FrameState
     loss: float
     iterations: int
     converged: bool
+    trace: TrackTrace | None = None
 
 
 def to_device(values: np.ndarray, like: torch.Tensor) -> torch.Tensor:
@@ -77,6 +94,7 @@ class TrackRequest:
         iterations: the iteration budget (the learning rate decays over it); None =
             ``budget.tracking_iters``.
         lr_scale: multiplies the pose learning rates (used when re-tracking after divergence).
+        trace: record every iteration's loss, step and pose in the result (diagnostics).
     """
 
     obs: FrameObs
@@ -84,6 +102,7 @@ class TrackRequest:
     start_anchor: tuple[np.ndarray, float] | None = None
     iterations: int | None = None
     lr_scale: float = 1.0
+    trace: bool = False
 
 
 def track_frame(ctx: SlamContext, gmap: GaussianMap, crf: CameraResponse,
@@ -114,6 +133,9 @@ def track_frame(ctx: SlamContext, gmap: GaussianMap, crf: CameraResponse,
     like = obs.rgb  # dtype and device of the copies
     m = len(fractions)
     loss_val, it, converged = math.inf, 0, False
+    trace: list[tuple[float, float, np.ndarray]] = []
+    settled = ConvergenceTest(cfg.tracking.convergence, cfg.tracking.convergence_tolerance,
+                              cfg.tracking.convergence_patience)
     for step_i in range(1, n_iters + 1):
         it = step_i
         # Map from the free twists (xi_0, xi_1 | xi_1) to the end twists (xi_0, xi_1) [12, 6n].
@@ -146,7 +168,10 @@ def track_frame(ctx: SlamContext, gmap: GaussianMap, crf: CameraResponse,
         pose1 = se3_exp(steps[-1]) @ pose1
         if use_exposure:
             exposure = exposure + delta[6 * n_free:]
-        if float(np.linalg.norm(steps, axis=-1).max()) < cfg.budget.converged_threshold:
+        step_norm = float(np.linalg.norm(steps, axis=-1).max())
+        if request.trace:
+            trace.append((loss_val, step_norm, pose1.copy()))
+        if settled.update(loss_val, step_norm) or step_norm < cfg.budget.converged_threshold:
             converged = True
             break
     if anchor is not None:
@@ -154,7 +179,11 @@ def track_frame(ctx: SlamContext, gmap: GaussianMap, crf: CameraResponse,
     elif not blur:
         pose0 = pose1.copy()
     state = FrameState(init.index, pose0, pose1, float(exposure[0]), float(exposure[1]))
-    return TrackResult(state, loss_val, it, converged)
+    recorded = None
+    if request.trace:
+        recorded = TrackTrace(np.array([t[0] for t in trace]), np.array([t[1] for t in trace]),
+                              np.array([t[2] for t in trace]).reshape(-1, 4, 4))
+    return TrackResult(state, loss_val, it, converged, recorded)
 
 
 class GradientTracker:
