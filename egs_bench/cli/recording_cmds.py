@@ -5,9 +5,11 @@ from __future__ import annotations
 from pathlib import Path
 
 import typer
-from rich.console import Console
+from rich.text import Text
 
 from egs_bench.cli.app import app
+from egs_bench.cli.app import out as _out
+from egs_bench.cli.choices import FrameStamp, TimesUnit
 
 
 @app.command("import-recording")
@@ -41,9 +43,9 @@ def import_recording_cmd(
                                                  "stamp per line."),
     depth_times: Path | None = typer.Option(None, "--depth-times",
                                             help="For a depth folder: one stamp per line."),
-    times_unit: str = typer.Option("us", "--times-unit",
+    times_unit: TimesUnit = typer.Option("us", "--times-unit",
                                    help="Unit of times files: us, ms, s, ns."),
-    frame_stamp: str | None = typer.Option(None, "--frame-stamp",
+    frame_stamp: FrameStamp | None = typer.Option(None, "--frame-stamp",
                                            help="What a single frame stamp marks: start, mid or "
                                                 "end of the exposure (default: the preset's, else "
                                                 "mid)."),
@@ -77,7 +79,7 @@ def import_recording_cmd(
         max_frames=max_frames, name=name, preset=preset,
     )  # fmt: skip
     path = import_recording(spec, out, overwrite=overwrite, progress=progress)
-    Console().print(f"wrote {path}")
+    _out.print(f"wrote {path}")
 
 
 @app.command("make-calib")
@@ -101,7 +103,7 @@ def make_calib_cmd(
 
     path = write_calib_template(out, kalibr=kalibr, camera=camera, ros_yaml=ros_yaml,
                                 depth_on_event=depth_on_event, preset=preset)
-    Console().print(f"wrote {path} (check every value before importing)")
+    _out.print(f"wrote {path} (check every value before importing)")
 
 
 @app.command("recording-presets")
@@ -109,15 +111,14 @@ def recording_presets_cmd() -> None:
     """List the recording presets of `import-recording` with their topics and downloads."""
     from egs_bench.recordings import PRESETS
 
-    console = Console(highlight=False)
     for p in PRESETS.values():
-        console.print(f"[bold]{p.name}[/]: {p.description}")
+        _out.print(Text.assemble((p.name, "bold"), f": {p.description}"))
         topics = {"events": p.events_topic, "frames": p.frames_topic,
                   "exposure": p.exposure_topic, "depth": p.depth_topic, "gt": p.gt_topic}
-        console.print("  topics: " + ", ".join(f"{k} {v}" for k, v in topics.items() if v))
-        console.print(f"  frame stamp: {p.frame_stamp}; depth: {p.depth_source}; "
+        _out.print("  topics: " + ", ".join(f"{k} {v}" for k, v in topics.items() if v))
+        _out.print(f"  frame stamp: {p.frame_stamp}; depth: {p.depth_source}; "
                       f"events_on_frame_sensor: {str(p.events_on_frame_sensor).lower()}")
         for d in p.downloads:
-            console.print(f"  download: {d}")
+            _out.print(f"  download: {d}")
         for n in p.notes:
-            console.print(f"  note: {n}")
+            _out.print(f"  note: {n}")

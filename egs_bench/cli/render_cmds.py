@@ -9,6 +9,7 @@ import numpy as np
 import typer
 
 from egs_bench.cli.app import app
+from egs_bench.cli.choices import MapBackend, MapColors
 from egs_bench.errors import ConfigError
 
 BACKENDS = ("auto", "numba", "gsplat")
@@ -47,7 +48,7 @@ def render_map(
     exposure: bool = typer.Option(False, "--exposure",
                                   help="Apply the frame's exposure compensation (brightness "
                                        "of the observed frame; the run's renders do not)."),
-    colors: str = typer.Option("auto", "--colors",
+    colors: MapColors = typer.Option("auto", "--colors",
                                help="Without an appearance file: auto (from the file), linear "
                                     "(sRGB-encode) or display (as stored)."),
     width: int = typer.Option(None, min=1, help="Image width in pixels [default: the run's "
@@ -57,7 +58,7 @@ def render_map(
     fov: float = typer.Option(None, min=1.0, max=170.0,
                               help="Horizontal field of view in degrees, square pixels "
                                    "[default: the run's camera, else 60]."),
-    backend: str = typer.Option("auto", help="Rasteriser backend: auto, numba, gsplat."),
+    backend: MapBackend = typer.Option("auto", help="Rasteriser backend: auto, numba, gsplat."),
     overwrite: bool = typer.Option(False, "--overwrite",
                                    help="Replace an existing PNG at --out."),
 ) -> None:

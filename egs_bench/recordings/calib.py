@@ -38,6 +38,7 @@ import numpy as np
 import yaml
 
 from egs_bench.errors import InputError
+from egs_bench.fileio import read_text
 from egs_bench.recordings.camera import CameraModel
 
 #: a rotation whose R^T R differs from I by more than this is not a rotation
@@ -245,10 +246,8 @@ def camera_from_ros_yaml(path: str | Path) -> CameraModel:
 
 
 def _read_yaml(path: Path, what: str = "file") -> dict:
-    if not path.is_file():
-        raise InputError(path, f"{what} not found")
     try:
-        raw = yaml.safe_load(path.read_text())
+        raw = yaml.safe_load(read_text(path, what))
     except yaml.YAMLError as exc:
         raise InputError(path, f"not valid YAML ({exc})") from None
     if not isinstance(raw, dict):

@@ -75,15 +75,15 @@ def test_cli_bad_inputs_one_line_each(tmp_path, capsys) -> None:
     # exit code 3: a file is missing or malformed; 2: an option value is wrong
     cases = [
         (("eval", str(tmp_path / "missing")), 3, "missing: run folder not found"),
-        (("eval", str(tmp_path), "--protocol", "tum"), 2, "unknown protocol 'tum'"),
+        (("eval", str(tmp_path), "--protocol", "tum"), 2, "'tum' is not one of 'egs', 'monogs'"),
         (("ate", str(tmp_path / "x.txt"), str(tmp_path / "x.txt")), 3,
          "x.txt: holds 2 poses, at least 3 needed"),
         (("ate", str(tmp_path / "nan.txt"), str(tmp_path / "nan.txt")), 3,
          "nan.txt: NaN or infinite value in pose 1"),
         (("ate", str(tmp_path / "ok.txt"), str(tmp_path / "ok.txt"), "--align", "affine"), 2,
-         "unknown alignment 'affine'"),
+         "'affine' is not one of 'se3', 'sim3', 'none'"),
         (("leaderboard", str(tmp_path)), 3, "holds no run folders"),
-        (("leaderboard", str(tmp_path), "--format", "html"), 2, "unknown format 'html'"),
+        (("leaderboard", str(tmp_path), "--format", "html"), 2, "'html' is not one of 'md', 'latex', 'csv', 'csv-summary'"),
         (("plot", str(tmp_path / "missing")), 3, "missing: run folder not found"),
         (("compare-images", str(tmp_path / "no.png"), str(tmp_path / "no2.png")), 3,
          "no.png: image not found"),
