@@ -61,8 +61,10 @@ def sweep_cmd(
                        wait=not no_wait, dry_run=dry_run, status_only=status,
                        say=lambda m: _out.print(m, markup=False))
     typer.echo(report.summary_md, nl=False)
-    _out.print(f"summary: {report.out / 'sweep_summary.md'} (and .csv)")
-    if not (dry_run or status or no_wait) and not report.all_done:
+    if not dry_run:
+        _out.print(f"summary: {report.out / 'sweep_summary.md'} (and .csv)")
+    # --status answers "is the sweep complete?" with the exit code, as a run does
+    if not (dry_run or no_wait) and not report.all_done:
         raise typer.Exit(1)
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import typer
 from rich.text import Text
@@ -10,6 +11,11 @@ from rich.text import Text
 from egs_bench.cli.app import app
 from egs_bench.cli.app import out as _out
 from egs_bench.cli.choices import FrameStamp, TimesUnit
+
+
+def _topic(option: str, what: str) -> Any:
+    """A topic-name option of ``import-recording``."""
+    return typer.Option(None, option, help=f"{what}: topic name (default: the preset's).")
 
 
 @app.command("import-recording")
@@ -28,13 +34,13 @@ def import_recording_cmd(
                                       "known rig or dataset (`egs-bench recording-presets`)."),
     frames: Path | None = typer.Option(None, "--frames", help="Frames: AEDAT4, .bag or image "
                                        "folder (default: the --events file)."),
-    events_topic: str | None = typer.Option(None, "--events-topic"),
-    frames_topic: str | None = typer.Option(None, "--frames-topic"),
+    events_topic: str | None = _topic("--events-topic", "Events (EventArray) in the --events bag"),
+    frames_topic: str | None = _topic("--frames-topic", "Frames (Image) in the --frames bag"),
     exposure_topic: str | None = typer.Option(None, "--exposure-topic",
                                               help="std_msgs/Int32 exposure in us per frame "
                                                    "(DAVIS driver: /dvs/exposure)."),
-    depth_topic: str | None = typer.Option(None, "--depth-topic"),
-    gt_topic: str | None = typer.Option(None, "--gt-topic"),
+    depth_topic: str | None = _topic("--depth-topic", "Depth maps (Image) in the --depth bag"),
+    gt_topic: str | None = _topic("--gt-topic", "Mocap poses in the --gt bag"),
     camera_info_topic: str | None = typer.Option(None, "--camera-info-topic",
                                                  help="Take the event camera's calibration from "
                                                       "this CameraInfo topic of the events bag."),
@@ -64,7 +70,7 @@ def import_recording_cmd(
     name: str | None = typer.Option(None, "--name", help="Sequence name (default: folder name)."),
     overwrite: bool = typer.Option(False, "--overwrite",
                                    help="Replace an existing sequence folder."),
-    progress: bool = typer.Option(True, "--progress/--no-progress"),
+    progress: bool = typer.Option(True, "--progress/--no-progress", help="Show a progress bar."),
 ) -> None:
     """Import a real event + RGB-D + mocap recording as a sequence folder (ATE-only scoring)."""
     from egs_bench.recordings import RecordingSpec, import_recording
@@ -84,7 +90,7 @@ def import_recording_cmd(
 
 @app.command("make-calib")
 def make_calib_cmd(
-    out: Path = typer.Option(..., "--out", "-o", help="calib.yaml to write (must not exist)."),
+    out: Path = typer.Option(..., "--out", "-o", help="calib.yaml to write."),
     kalibr: Path | None = typer.Option(None, "--kalibr", help="Kalibr camchain.yaml holding the "
                                                              "event camera (e.g. MVSEC's)."),
     camera: str = typer.Option("cam0", "--camera", help="Camera entry in the Kalibr file."),
@@ -97,12 +103,15 @@ def make_calib_cmd(
                                              "(MVSEC): depth_camera: event."),
     preset: str | None = typer.Option(None, "--preset", help="Fill what the preset implies "
                                                              "(mvsec-indoor: --depth-on-event)."),
+    overwrite: bool = typer.Option(False, "--overwrite",
+                                   help="Replace an existing text file at --out."),
 ) -> None:
     """Write a calib.yaml template (identity transforms, zero offsets) to edit."""
     from egs_bench.recordings.calib import write_calib_template
 
     path = write_calib_template(out, kalibr=kalibr, camera=camera, ros_yaml=ros_yaml,
-                                depth_on_event=depth_on_event, preset=preset)
+                                depth_on_event=depth_on_event, preset=preset,
+                                overwrite=overwrite)
     _out.print(f"wrote {path} (check every value before importing)")
 
 

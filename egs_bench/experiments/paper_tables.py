@@ -171,7 +171,10 @@ def _latex_head(text: str) -> str:
 
 
 def _latex_stub(text: str) -> str:
-    return _LATEX_SYMBOLS.get(text) or latex_escape(text)
+    # a stub may hold a metric's Markdown header (the rendering table's rows): its Unicode
+    # arrow becomes the math arrow every other LaTeX header uses
+    return _LATEX_SYMBOLS.get(text) or latex_escape(text).replace(
+        "↑", r"$\uparrow$").replace("↓", r"$\downarrow$")
 
 
 def render_latex(table: PaperTable, label: str | None = None, width: str = "auto") -> str:

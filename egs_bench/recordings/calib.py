@@ -257,21 +257,31 @@ def _read_yaml(path: Path, what: str = "file") -> dict:
 
 def write_calib_template(out: str | Path, *, kalibr: str | Path | None = None,
                          camera: str = "cam0", ros_yaml: str | Path | None = None,
-                         depth_on_event: bool = False, preset: str | None = None) -> Path:
+                         depth_on_event: bool = False, preset: str | None = None,
+                         overwrite: bool = False) -> Path:
     """Write an editable ``calib.yaml``: the event camera from a Kalibr or ROS calibration file
     when given (else placeholders for a DAVIS346), identity transforms, zero time offsets.
 
-    ``preset="mvsec-indoor"`` implies ``depth_on_event`` (MVSEC's depth maps are on the DAVIS
-    grid). The file is only a starting point: extrinsics and offsets must be filled in.
+    ``preset`` is a name of :data:`egs_bench.recordings.presets.PRESETS`; ``"mvsec-indoor"``
+    implies ``depth_on_event`` (MVSEC's depth maps are on the DAVIS grid). The file is only a
+    starting point: extrinsics and offsets must be filled in. An existing ``out`` is replaced
+    only with ``overwrite`` and only if it is a text file (``outputs.prepare_output``).
+
+    Raises:
+        ConfigError: an unknown preset, or both ``kalibr`` and ``ros_yaml``.
+        OutputError: ``out`` exists (without ``overwrite``) or may not be replaced.
     """
     from egs_bench.errors import ConfigError
     from egs_bench.fileio import write_text_atomic
+    from egs_bench.outputs import prepare_output
+    from egs_bench.recordings.presets import PRESETS
 
     out = Path(out)
-    if out.exists():
-        raise ConfigError(f"{out} already exists: not overwriting a calibration")
+    if preset is not None and preset not in PRESETS:
+        raise ConfigError(f"unknown --preset {preset!r}; choose one of {', '.join(PRESETS)}")
     if kalibr is not None and ros_yaml is not None:
         raise ConfigError("give --kalibr or --ros-yaml, not both")
+    prepare_output(out, "text", overwrite=overwrite, inputs=[kalibr, ros_yaml], option="--out")
     if preset == "mvsec-indoor":
         depth_on_event = True
     if kalibr is not None:
