@@ -12,8 +12,6 @@ from egs_bench.cli.app import app
 from egs_bench.cli.choices import MapBackend, MapColors
 from egs_bench.errors import ConfigError
 
-BACKENDS = ("auto", "numba", "gsplat")
-
 
 def _parse_pose(text: str) -> np.ndarray:
     from egs_bench.geometry import pose_from_tq
@@ -68,8 +66,6 @@ def render_map(
     from egs_bench.outputs import prepare_output
     from egs_bench.slam.map_export import open_map, render_map_view
 
-    if backend not in BACKENDS:
-        raise ConfigError(f"--backend must be one of {', '.join(BACKENDS)}, not {backend!r}")
     pose_wc = _parse_pose(pose) if pose else None
     prepare_output(out, "png", overwrite=overwrite, inputs=[source, appearance])
     src = open_map(source, appearance)

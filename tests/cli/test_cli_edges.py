@@ -274,3 +274,14 @@ def test_rendering_table_latex_uses_math_arrows() -> None:
 
     assert _latex_stub("PSNR ↑") == r"PSNR $\uparrow$"
     assert _latex_stub("LPIPS ↓") == r"LPIPS $\downarrow$"
+
+
+def test_paper_tables_into_an_existing_file_is_a_usage_error(tmp_path) -> None:
+    from egs_bench.errors import OutputError
+    from egs_bench.experiments.paper_tables import write_tables
+
+    taken = tmp_path / "tables"
+    taken.write_text("a user's file\n")
+    with pytest.raises(OutputError, match="not a folder") as exc:
+        write_tables({}, taken)
+    assert exc.value.exit_code == 2 and taken.read_text() == "a user's file\n"
