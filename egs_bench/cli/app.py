@@ -49,7 +49,8 @@ def _one_line_usage_errors() -> Iterator[None]:
         raise  # typer shows the help for a bare `egs-bench`
     except UsageError as exc:
         where = f" (see {exc.ctx.command_path} --help)" if exc.ctx is not None else ""
-        raise CommandLineUsageError(f"{exc.format_message()}{where}") from exc
+        one_line = " ".join(exc.format_message().split())  # "Choose from:" lists one per line
+        raise CommandLineUsageError(f"{one_line}{where}") from exc
 
 
 def _refusing_non_finite(callback: Callable[..., Any] | None) -> Callable[..., Any]:

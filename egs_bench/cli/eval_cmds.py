@@ -94,7 +94,7 @@ def ate_cmd(
     groundtruth: Path = typer.Argument(..., help="Ground-truth (reference) trajectory, TUM."),
     estimate: Path = typer.Argument(..., help="Estimated trajectory, TUM format."),
     align: Alignment = typer.Option("se3", "--align", "-a", help="Alignment: se3, sim3 or none."),
-    max_diff: float = typer.Option(0.01, "--max-diff",
+    max_diff: float = typer.Option(0.01, "--max-diff", min=0.0,
                                    help="Timestamp association tolerance in seconds."),
     est_first: bool = _EST_FIRST,
 ) -> None:
@@ -125,7 +125,7 @@ def rpe_cmd(
                                    help="All pairs delta apart instead of consecutive pairs."),
     align: Alignment = typer.Option("none", "--align", "-a",
                               help="Alignment: none (evo_rpe's default), se3 or sim3."),
-    max_diff: float = typer.Option(0.01, "--max-diff",
+    max_diff: float = typer.Option(0.01, "--max-diff", min=0.0,
                                    help="Timestamp association tolerance in seconds."),
     est_first: bool = _EST_FIRST,
 ) -> None:

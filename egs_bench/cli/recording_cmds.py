@@ -55,12 +55,12 @@ def import_recording_cmd(
                                            help="What a single frame stamp marks: start, mid or "
                                                 "end of the exposure (default: the preset's, else "
                                                 "mid)."),
-    exposure_us: int | None = typer.Option(None, "--exposure-us",
+    exposure_us: int | None = typer.Option(None, "--exposure-us", min=1,
                                            help="Constant exposure time when the source has none."),
-    max_depth_dt_ms: float = typer.Option(15.0, "--max-depth-dt-ms",
+    max_depth_dt_ms: float = typer.Option(15.0, "--max-depth-dt-ms", min=0.0,
                                           help="Largest time between an exposure end and the "
                                                "depth map used for it."),
-    max_gt_gap_ms: float = typer.Option(50.0, "--max-gt-gap-ms",
+    max_gt_gap_ms: float = typer.Option(50.0, "--max-gt-gap-ms", min=0.0,
                                         help="Largest gap between the mocap poses around an "
                                              "exposure end (mocap dropouts drop the frame)."),
     first_frame: int = typer.Option(0, "--first-frame", min=0,
