@@ -59,9 +59,9 @@ def main(argv: list[str] | None = None) -> int:
         with signals_interrupt():
             app(args=argv, prog_name="egs-bench", standalone_mode=True)
     except SystemExit as exc:
-        # typer reports usage errors itself (exit 2) and turns Ctrl-C into exit 130; a signal
-        # we raised as Interrupted is found in the exception chain, and one whose exception
-        # was swallowed (see egs_bench.interrupts) is still recorded
+        # usage errors arrive as ConfigError (cli/app.py); typer turns Ctrl-C into exit 130; a
+        # signal we raised as Interrupted is found in the exception chain, and one whose
+        # exception was swallowed (see egs_bench.interrupts) is still recorded
         interrupted = interruption_in(exc) or received_interruption()
         if interrupted is not None:
             return _report_interruption(err, interrupted)
