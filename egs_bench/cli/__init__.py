@@ -16,8 +16,9 @@ os.environ.setdefault("NUMBA_CACHE_DIR",
                       os.path.join(os.path.expanduser("~"), ".cache", "egs_bench", "numba"))
 
 from rich.console import Console
+from rich.text import Text
 
-from egs_bench.cli.app import OPTIONS, app
+from egs_bench.cli.app import OPTIONS, app, err
 from egs_bench.errors import (
     EXIT_DATA,
     EXIT_INTERNAL,
@@ -54,14 +55,13 @@ def main(argv: list[str] | None = None) -> int:
     ``--debug`` shows the traceback), 130 / 143 / 129 interrupted by SIGINT / SIGTERM / SIGHUP.
     """
     _register_commands()
-    err = Console(stderr=True, highlight=False, soft_wrap=True)
     try:
         with signals_interrupt():
-            app(args=argv, standalone_mode=True)
+            app(args=argv, prog_name="egs-bench", standalone_mode=True)
     except SystemExit as exc:
-        # typer reports usage errors itself (exit 2) and turns Ctrl-C into exit 130; a signal
-        # we raised as Interrupted is found in the exception chain, and one whose exception
-        # was swallowed (see egs_bench.interrupts) is still recorded
+        # usage errors arrive as ConfigError (cli/app.py); typer turns Ctrl-C into exit 130; a
+        # signal we raised as Interrupted is found in the exception chain, and one whose
+        # exception was swallowed (see egs_bench.interrupts) is still recorded
         interrupted = interruption_in(exc) or received_interruption()
         if interrupted is not None:
             return _report_interruption(err, interrupted)
@@ -69,7 +69,7 @@ def main(argv: list[str] | None = None) -> int:
     except EgsBenchError as exc:
         if OPTIONS.debug:
             raise
-        err.print(f"[bold red]error:[/] {exc}", markup=True)
+        _error_line(err, "error:", str(exc))
         return exc.exit_code
     except KeyboardInterrupt as exc:
         return _report_interruption(err, exc)
@@ -79,7 +79,7 @@ def main(argv: list[str] | None = None) -> int:
             if OPTIONS.debug:
                 raise
             return _internal(err, exc)
-        err.print(f"[bold red]error:[/] {exc.filename}: {exc.strerror or exc}", markup=True)
+        _error_line(err, "error:", f"{exc.filename}: {exc.strerror or exc}")
         return EXIT_DATA
     except Exception as exc:  # noqa: BLE001 (last-resort one-line report; --debug shows all)
         if (interrupted := interruption_in(exc)) is not None:  # e.g. raised inside numba
@@ -92,6 +92,12 @@ def main(argv: list[str] | None = None) -> int:
     return EXIT_OK
 
 
+def _error_line(err: Console, label: str, message: str) -> None:
+    """``label message`` as one line, the label in bold red; the message is printed as it is
+    (it names the user's paths and values, which are never read as rich markup)."""
+    err.print(Text.assemble((label, "bold red"), " ", message))
+
+
 def _report_interruption(err: Console, exc: KeyboardInterrupt) -> int:
     """One line and the exit code 128 + signal (130 for a plain Ctrl-C)."""
     err.print(str(exc) if isinstance(exc, Interrupted) else "interrupted")
@@ -99,8 +105,8 @@ def _report_interruption(err: Console, exc: KeyboardInterrupt) -> int:
 
 
 def _internal(err: Console, exc: BaseException) -> int:
-    err.print(f"[bold red]internal error:[/] {type(exc).__name__}: {exc} "
-              "(a bug in egs-bench; run with --debug for the traceback)", markup=True)
+    _error_line(err, "internal error:", f"{type(exc).__name__}: {exc} "
+                "(a bug in egs-bench; run with --debug for the traceback)")
     return EXIT_INTERNAL
 
 

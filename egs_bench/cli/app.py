@@ -1,10 +1,21 @@
-"""The typer application object and global options, shared by the command modules."""
+"""The typer application object, global options and the consoles, shared by the command
+modules."""
 
 from __future__ import annotations
 
+import math
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
+from typing import Any
 
 import typer
+from rich.console import Console
+from typer._click import Context
+from typer._click.exceptions import BadParameter, NoArgsIsHelpError, UsageError
+from typer.core import TyperGroup
+
+from egs_bench.errors import ConfigError
 
 
 @dataclass
@@ -14,8 +25,73 @@ class GlobalOptions:
 
 OPTIONS = GlobalOptions()
 
+#: the largest ``--seed`` (numpy's legacy and most simulators' seeds are 32-bit)
+SEED_MAX = 2**32 - 1
+
+# Every message names paths, sequence names and values the tool did not write, and rich would
+# read `[red]` or `[/x]` in them as markup (raising MarkupError or eating text) and `:smile:`
+# as an emoji. So no console of the CLI interprets its strings; styling is given as
+# rich.text.Text spans instead of markup.
+out = Console(markup=False, emoji=False, highlight=False, soft_wrap=True)
+err = Console(stderr=True, markup=False, emoji=False, highlight=False, soft_wrap=True)
+
+
+class CommandLineUsageError(ConfigError):
+    """An option or argument typer refused (unknown, missing, of the wrong type, out of range);
+    reported like every other error, as one line with exit code 2."""
+
+
+@contextmanager
+def _one_line_usage_errors() -> Iterator[None]:
+    try:
+        yield
+    except NoArgsIsHelpError:
+        raise  # typer shows the help for a bare `egs-bench`
+    except UsageError as exc:
+        where = f" (see {exc.ctx.command_path} --help)" if exc.ctx is not None else ""
+        one_line = " ".join(exc.format_message().split())  # "Choose from:" lists one per line
+        raise CommandLineUsageError(f"{one_line}{where}") from exc
+
+
+def _refusing_non_finite(callback: Callable[..., Any] | None) -> Callable[..., Any]:
+    """An option callback that refuses NaN and infinities, then runs ``callback``."""
+
+    def check(ctx: Context, param: Any, value: Any) -> Any:
+        if isinstance(value, float) and not math.isfinite(value):
+            raise BadParameter(f"{value} is not a finite number", ctx=ctx, param=param)
+        return callback(ctx, param, value) if callback is not None else value
+
+    return check
+
+
+class EgsBenchGroup(TyperGroup):
+    """The command group: usage errors become one-line :class:`ConfigError`\\ s (typer would
+    print a usage block and a framed panel), and no number option of any command accepts NaN
+    or an infinity (float parsing takes "nan" and "inf", and no range check refuses NaN)."""
+
+    def __init__(self, **attrs: Any) -> None:
+        super().__init__(**attrs)
+        for command in self.commands.values():
+            for param in command.params:
+                if getattr(getattr(param, "type_descriptor", None), "annotation", None) is float:
+                    param.callback = _refusing_non_finite(param.callback)
+
+    def make_context(self, info_name: str | None, args: list[str],
+                     parent: Context | None = None, **extra: Any) -> Context:
+        with _one_line_usage_errors():
+            return super().make_context(info_name, args, parent=parent, **extra)
+
+    def invoke(self, ctx: Context) -> Any:
+        with _one_line_usage_errors():  # the command's own options are parsed in here
+            return super().invoke(ctx)
+
+
 app = typer.Typer(
     name="egs-bench",
+    cls=EgsBenchGroup,
+    # plain help: rich mode reads help texts as markup (eating "[default: ...]") and shows
+    # flags as "<bool>"; plain help shows flags bare and choices as <a|b|c>
+    rich_markup_mode=None,
     help="Event + RGB-D Gaussian Splatting SLAM toolkit: make data, run methods, score them.",
     no_args_is_help=True,
     pretty_exceptions_enable=False,
@@ -32,3 +108,15 @@ def _global(
 ) -> None:
     """Event + RGB-D Gaussian Splatting SLAM toolkit: make data, run methods, score them."""
     OPTIONS.debug = debug
+
+
+def comma_list(text: str, option: str) -> list[str]:
+    """The non-empty items of a comma-separated option value; at least one is required.
+
+    Raises:
+        ConfigError: the value lists nothing (e.g. ``--metrics ,``).
+    """
+    items = [item.strip() for item in text.split(",") if item.strip()]
+    if not items:
+        raise ConfigError(f"{option} lists nothing (got {text!r}); give comma-separated names")
+    return items

@@ -5,10 +5,11 @@ from __future__ import annotations
 from pathlib import Path
 
 import typer
-from rich.console import Console
 from rich.table import Table
 
 from egs_bench.cli.app import app
+from egs_bench.cli.app import out as _out
+from egs_bench.cli.choices import SlamPreset
 
 
 @app.command("info")
@@ -32,7 +33,7 @@ def info(
         if isinstance(value, dict):
             value = ", ".join(f"{k}={v}" for k, v in value.items())
         table.add_row(key, str(value))
-    Console().print(table)
+    _out.print(table)
 
 
 @app.command("show")
@@ -54,7 +55,7 @@ def show(
         raise ConfigError(f"--frame {frame} out of range: {seq} has {len(sequence)} frames")
     prepare_output(out, "png", overwrite=overwrite, inputs=[sequence.path])
     save_frame_panel(sequence, frame, out)
-    Console().print(f"wrote {out}")
+    _out.print(f"wrote {out}")
 
 
 @app.command("demo")
@@ -64,12 +65,9 @@ def demo(
     sequence: str = typer.Option("demo-blur", "--seq", "-s",
                                  help="Sequence name or folder (built-in names are generated "
                                       "under $EGS_BENCH_DATA, default ./data, on first use)."),
-    preset: str = typer.Option("cpu", "--preset", help="SLAM configuration preset."),
+    preset: SlamPreset = typer.Option("cpu", "--preset", help="SLAM configuration preset."),
 ) -> None:
     """End-to-end demo: blurred synthetic sequence -> egs and monogs -> metrics -> leaderboard."""
     from egs_bench.demo import run_demo
 
-    console = Console()
-    run_demo(out, sequence=sequence, preset=preset,
-             say=lambda text: console.print(text, markup=False, highlight=False,
-                                            soft_wrap=True))
+    run_demo(out, sequence=sequence, preset=preset, say=_out.print)

@@ -9,14 +9,24 @@ from __future__ import annotations
 from pathlib import Path
 
 import typer
-from rich.console import Console
 from rich.table import Table
 from typer.core import TyperCommand
 
-from egs_bench.cli.app import app
+from egs_bench.cli.app import app, comma_list
+from egs_bench.cli.app import out as _out
+from egs_bench.cli.choices import (
+    Alignment,
+    BoardFormat,
+    BoardLayout,
+    DeltaUnit,
+    ImportFormat,
+    LpipsNet,
+    PoseRelation,
+    Protocol,
+    QuaternionOrder,
+    TableWidth,
+)
 from egs_bench.eval.protocols import DEFAULT_PROTOCOL
-
-_out = Console(highlight=False, soft_wrap=True)
 
 
 def _fmt(value: float | None, digits: int) -> str:
@@ -26,8 +36,8 @@ def _fmt(value: float | None, digits: int) -> str:
 @app.command("eval")
 def eval_cmd(
     run_dir: Path = typer.Argument(..., help="Run folder to evaluate (see docs: run folder)."),
-    protocol: str = typer.Option(DEFAULT_PROTOCOL, "--protocol", "-p",
-                                 help="Evaluation protocol: egs (default) or monogs."),
+    protocol: Protocol = typer.Option(DEFAULT_PROTOCOL, "--protocol", "-p",
+                                      help="Evaluation protocol: egs (default) or monogs."),
 ) -> None:
     """Score a run (ATE, PSNR, SSIM, LPIPS, FPS) and write RUN_DIR/metrics.json."""
     from egs_bench.eval.evaluate import evaluate_run
@@ -141,7 +151,7 @@ def _save_option(metric: str):  # noqa: ANN202 (a typer OptionInfo)
 
 
 _OVERWRITE = typer.Option(False, "--overwrite", help="Replace an existing --save-results file.")
-_MAX_DIFF = typer.Option(0.01, "--max-diff", "--t_max_diff",
+_MAX_DIFF = typer.Option(0.01, "--max-diff", "--t_max_diff", min=0.0,
                          help="Timestamp association tolerance in seconds (evo's --t_max_diff).")
 _RELATIONS_HELP = "trans_part (m), angle_deg, angle_rad, rot_part, full, point_distance"
 
@@ -155,8 +165,8 @@ def _warn(notes: tuple[str, ...]) -> None:
 def ate_cmd(
     groundtruth: Path = typer.Argument(..., help="Ground-truth (reference) trajectory, TUM."),
     estimate: Path = typer.Argument(..., help="Estimated trajectory, TUM format."),
-    align: str = typer.Option("se3", "--align", "-a", help=f"Alignment: {_ALIGN_HELP}."),
-    relation: str = typer.Option("trans_part", "--pose-relation", "--pose_relation", "-r",
+    align: Alignment = typer.Option("se3", "--align", "-a", help=f"Alignment: {_ALIGN_HELP}."),
+    relation: PoseRelation = typer.Option("trans_part", "--pose-relation", "--pose_relation", "-r",
                                  help=f"Pose relation of the error: {_RELATIONS_HELP} "
                                       "(evo_ape's -r; angle_deg is the rotation ATE)."),
     max_diff: float = _MAX_DIFF,
@@ -189,17 +199,17 @@ def ate_cmd(
 def rpe_cmd(
     groundtruth: Path = typer.Argument(..., help="Ground-truth (reference) trajectory, TUM."),
     estimate: Path = typer.Argument(..., help="Estimated trajectory, TUM format."),
-    relation: str = typer.Option("trans_part", "--pose-relation", "--pose_relation", "-r",
+    relation: PoseRelation = typer.Option("trans_part", "--pose-relation", "--pose_relation", "-r",
                                  help=f"{_RELATIONS_HELP} (evo_rpe's -r)."),
     delta: float = typer.Option(1.0, "--delta", "-d", help="Pair spacing, in --delta-unit."),
-    delta_unit: str = typer.Option("f", "--delta-unit", "--delta_unit", "-u",
+    delta_unit: DeltaUnit = typer.Option("f", "--delta-unit", "--delta_unit", "-u",
                                    help="f (frames), m (metres of path), d / r (degrees / "
                                         "radians of rotation)."),
     all_pairs: bool = typer.Option(False, "--all-pairs", "--all_pairs",
                                    help="All pairs delta apart instead of consecutive pairs."),
     delta_tol: float = typer.Option(0.1, "--delta-tol", "--delta_tol",
                                     help="Relative tolerance of delta with --all-pairs."),
-    align: str = typer.Option("none", "--align", "-a",
+    align: Alignment = typer.Option("none", "--align", "-a",
                               help=f"Alignment (evo_rpe's default: none): {_ALIGN_HELP}."),
     max_diff: float = _MAX_DIFF,
     save_results: Path | None = _save_option("RPE"),
@@ -236,7 +246,7 @@ def rpe_cmd(
 def compare_images_cmd(
     image_a: Path = typer.Argument(..., help="First image (e.g. a render), 8-bit RGB."),
     image_b: Path = typer.Argument(..., help="Second image (the reference), 8-bit RGB."),
-    lpips_net: str = typer.Option("alex", "--lpips-net", help="LPIPS backbone: alex or vgg."),
+    lpips_net: LpipsNet = typer.Option("alex", "--lpips-net", help="LPIPS backbone: alex or vgg."),
 ) -> None:
     """PSNR (full and masked), SSIM (3DGS and standard) and LPIPS of two images."""
     from egs_bench.eval.compare import compare_image_files
@@ -253,13 +263,13 @@ def compare_images_cmd(
 @app.command("leaderboard")
 def leaderboard_cmd(
     runs_root: Path = typer.Argument(..., help="Folder searched recursively for run folders."),
-    fmt: str = typer.Option("md", "--format", "-f",
+    fmt: BoardFormat = typer.Option("md", "--format", "-f",
                             help="Output format: md, latex, csv (one row per run, units in the "
                                  "column names) or csv-summary (mean/std per method, settings "
                                  "and sequence)."),
-    by: str = typer.Option("sequence", "--by",
+    by: BoardLayout = typer.Option("sequence", "--by",
                            help="Column groups: sequence (rows = methods) or method."),
-    protocol: str = typer.Option(DEFAULT_PROTOCOL, "--protocol", "-p",
+    protocol: Protocol = typer.Option(DEFAULT_PROTOCOL, "--protocol", "-p",
                                  help="Protocol of the numbers (runs are evaluated if needed)."),
     metrics: str = typer.Option("ate,psnr,ssim,lpips", "--metrics",
                                 help="Comma-separated metrics: ate, psnr, ssim, lpips, fps."),
@@ -272,7 +282,7 @@ def leaderboard_cmd(
     caption: str | None = typer.Option(None, "--caption", help="LaTeX caption."),
     label: str | None = typer.Option(None, "--label",
                                      help="LaTeX label (default tab:<RUNS_ROOT name>)."),
-    width: str = typer.Option("auto", "--width",
+    width: TableWidth = typer.Option("auto", "--width",
                               help="LaTeX width: auto, natural, column (shrink to the column) "
                                    "or page (table* shrunk to the text width)."),
 ) -> None:
@@ -286,7 +296,7 @@ def leaderboard_cmd(
         prepare_output(output, "text", overwrite=overwrite, inputs=[runs_root],
                        option="--output")
     text = leaderboard(runs_root, fmt=fmt, by=by, protocol=protocol,
-                       metrics=[m.strip() for m in metrics.split(",") if m.strip()],
+                       metrics=comma_list(metrics, "--metrics"),
                        evaluate_missing=not no_eval, caption=caption, label=label,
                        width=width)
     if output is not None:
@@ -299,7 +309,7 @@ def leaderboard_cmd(
 @app.command("plot")
 def plot_cmd(
     run_dir: Path = typer.Argument(..., help="Run folder; plots go to RUN_DIR/plots/."),
-    protocol: str = typer.Option(DEFAULT_PROTOCOL, "--protocol", "-p",
+    protocol: Protocol = typer.Option(DEFAULT_PROTOCOL, "--protocol", "-p",
                                  help="Protocol whose ATE settings are used."),
     frames: str | None = typer.Option(None, "--frames",
                                       help="Comma-separated frame indices of the image grid."),
@@ -324,7 +334,7 @@ def import_run_cmd(
     source: Path = typer.Argument(..., help="External output: a TUM file, or the file / folder "
                                             "the system wrote (see --from)."),
     out_dir: Path = typer.Argument(..., help="Run folder to create."),
-    fmt: str = typer.Option("tum", "--from",
+    fmt: ImportFormat = typer.Option("tum", "--from",
                             help="What SOURCE is: tum, orbslam2 (CameraTrajectory.txt / "
                                  "KeyFrameTrajectory.txt or their folder), photoslam (output "
                                  "folder), monogs (result folder or trj_final.json), rampvo "
@@ -348,7 +358,7 @@ def import_run_cmd(
     render_ply: bool = typer.Option(False, "--render-ply",
                                     help="--from monogs: render its point_cloud.ply at the "
                                          "imported poses."),
-    quaternion: str = typer.Option("rampvo", "--quaternion",
+    quaternion: QuaternionOrder = typer.Option("rampvo", "--quaternion",
                                    help="--from rampvo: quaternion columns as RampVO writes "
                                         "them (rampvo: qy qz qw qx) or wxyz."),
     overwrite: bool = typer.Option(False, "--overwrite", help="Replace an existing run folder."),

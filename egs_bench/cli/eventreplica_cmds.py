@@ -6,9 +6,10 @@ from pathlib import Path
 from typing import Any, Literal
 
 import typer
-from rich.console import Console
 
-from egs_bench.cli.app import app
+from egs_bench.cli.app import SEED_MAX, app
+from egs_bench.cli.app import out as _out
+from egs_bench.cli.choices import Interpolator
 
 
 @app.command("make-eventreplica")
@@ -77,7 +78,7 @@ def make_eventreplica_cmd(
              "change between samples) or N (exactly N equal sub-steps between consecutive "
              "exposure boundaries).",
     ),
-    interpolator: str = typer.Option(
+    interpolator: Interpolator = typer.Option(
         "depth", "--interpolator",
         help="In-between frames: 'depth' (pose-aware depth-based view synthesis) or 'flow' "
              "(OpenCV DIS optical flow; needs no depth).",
@@ -107,7 +108,8 @@ def make_eventreplica_cmd(
     gain: float = typer.Option(
         1.0, "--gain", help="Camera response gain before sRGB encoding (> 1 saturates)."
     ),
-    seed: int = typer.Option(0, "--seed", help="Seed for event noise/threshold mismatch."),
+    seed: int = typer.Option(0, "--seed", min=0, max=SEED_MAX,
+                             help="Seed for event noise/threshold mismatch."),
     overwrite: bool = typer.Option(False, "--overwrite", help="Replace existing outputs."),
     progress: bool = typer.Option(True, "--progress/--no-progress", help="Show progress bars."),
 ) -> None:
@@ -154,7 +156,7 @@ def make_eventreplica_cmd(
         outputs = make_eventreplica_scenes(replica_root, scene or [], out,
                                            cam_params=cam_params, **kwargs)
     for path in outputs:
-        Console().print(f"wrote {path}")
+        _out.print(f"wrote {path}")
 
 
 def _parse_size(text: str) -> tuple[int, int] | Literal["auto"] | None:

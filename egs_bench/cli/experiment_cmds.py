@@ -8,11 +8,10 @@ from __future__ import annotations
 from pathlib import Path
 
 import typer
-from rich.console import Console
 
-from egs_bench.cli.app import app
-
-_out = Console(highlight=False, soft_wrap=True)
+from egs_bench.cli.app import app, comma_list
+from egs_bench.cli.app import out as _out
+from egs_bench.cli.choices import FigureKind, Protocol, SubmititCluster, SweepBackend, TableWidth
 
 
 @app.command("sweep")
@@ -22,7 +21,7 @@ def sweep_cmd(
     out: Path | None = typer.Option(None, "--out", "-o",
                                     help="Output folder (default: the file's 'out', else "
                                          "sweeps/<file stem>)."),
-    backend: str = typer.Option("local", "--backend", "-b",
+    backend: SweepBackend = typer.Option("local", "--backend", "-b",
                                 help="local (process pool) or slurm (submitit job array)."),
     shard: str | None = typer.Option(None, "--shard",
                                      help="Run only shard i of N (i/N, 0 <= i < N), for "
@@ -46,7 +45,7 @@ def sweep_cmd(
     no_wait: bool = typer.Option(False, "--no-wait",
                                  help="slurm: return after submitting (check later with "
                                       "--status)."),
-    cluster: str = typer.Option("slurm", "--cluster",
+    cluster: SubmititCluster = typer.Option("slurm", "--cluster",
                                 help="submitit cluster of the slurm backend: slurm, or local / "
                                      "debug to try the backend on this machine."),
 ) -> None:
@@ -62,8 +61,10 @@ def sweep_cmd(
                        wait=not no_wait, dry_run=dry_run, status_only=status,
                        say=lambda m: _out.print(m, markup=False))
     typer.echo(report.summary_md, nl=False)
-    _out.print(f"summary: {report.out / 'sweep_summary.md'} (and .csv)")
-    if not (dry_run or status or no_wait) and not report.all_done:
+    if not dry_run:
+        _out.print(f"summary: {report.out / 'sweep_summary.md'} (and .csv)")
+    # --status answers "is the sweep complete?" with the exit code, as a run does
+    if not (dry_run or no_wait) and not report.all_done:
         raise typer.Exit(1)
 
 
@@ -78,7 +79,7 @@ def regress_cmd(
     metrics: str | None = typer.Option(None, "--metrics",
                                        help="Comma-separated metrics to check (default: those "
                                             "with a tolerance: ate, psnr, ssim, lpips)."),
-    protocol: str = typer.Option("egs", "--protocol", "-p", help="Evaluation protocol."),
+    protocol: Protocol = typer.Option("egs", "--protocol", "-p", help="Evaluation protocol."),
     update: bool = typer.Option(False, "--update",
                                 help="Write the summary of RUNS to BASELINE instead of "
                                      "checking (refreshes a committed baseline)."),
@@ -114,8 +115,8 @@ def paper_tables_cmd(
                                     help="Folder for the tables (default SWEEP_DIR/tables)."),
     tables: str = typer.Option("ate,rendering,ablation_events,ablation_crf,edi", "--tables",
                                help="Comma-separated tables to make (those the runs can fill)."),
-    protocol: str = typer.Option("egs", "--protocol", "-p", help="Evaluation protocol."),
-    width: str = typer.Option("auto", "--width",
+    protocol: Protocol = typer.Option("egs", "--protocol", "-p", help="Evaluation protocol."),
+    width: TableWidth = typer.Option("auto", "--width",
                               help="LaTeX width: auto, natural, column or page (table*)."),
     label_prefix: str = typer.Option("tab:", "--label-prefix",
                                      help="LaTeX labels are <prefix><table name>."),
@@ -129,7 +130,7 @@ def paper_tables_cmd(
     from egs_bench.experiments.paper_tables import build_tables, render_markdown, write_tables
 
     made, skipped = build_tables(sweep_dir, protocol,
-                                 tables=[t.strip() for t in tables.split(",") if t.strip()])
+                                 tables=comma_list(tables, "--tables"))
     target = out or Path(sweep_dir) / "tables"
     paths = write_tables(made, target, label_prefix=label_prefix, width=width,
                          overwrite=overwrite)
@@ -165,7 +166,7 @@ def _crops(values: list[str]) -> list[tuple[int, int, int, int]]:
 
 @app.command("figure")
 def figure_cmd(
-    kind: str = typer.Argument(..., help="trajectories (several methods on one plot) or "
+    kind: FigureKind = typer.Argument(..., help="trajectories (several methods on one plot) or "
                                          "qualitative (renders side by side, zoomed crops, "
                                          "PSNR)."),
     run_dirs: list[Path] = typer.Argument(..., help="Run folders of one sequence."),
@@ -176,7 +177,7 @@ def figure_cmd(
                                         "(repeatable, up to 4)."),
     label: list[str] = typer.Option([], "--label",
                                     help="Legend/column label per run (default: the method)."),
-    protocol: str = typer.Option("egs", "--protocol", "-p",
+    protocol: Protocol = typer.Option("egs", "--protocol", "-p",
                                  help="ATE settings and reference images of this protocol."),
     overwrite: bool = typer.Option(False, "--overwrite", help="Replace an existing figure."),
 ) -> None:

@@ -8,16 +8,17 @@ from pathlib import Path
 import typer
 
 from egs_bench.cli.app import app
+from egs_bench.cli.choices import ExportFormat, Retime
 
 
 @app.command("export")
 def export_cmd(
     seq: str = typer.Argument(..., help="Sequence folder, or a name under $EGS_BENCH_DATA."),
     out: Path = typer.Argument(..., help="Export folder to create."),
-    fmt: str = typer.Option(..., "--format", "-f",
+    fmt: ExportFormat = typer.Option(..., "--format", "-f",
                             help="tum-rgbd (MonoGS, ORB-SLAM2, Photo-SLAM), replica "
                                  "(NICE-SLAM-style loaders, MonoGS), eds (RampVO)."),
-    retime: str = typer.Option("auto", "--retime",
+    retime: Retime = typer.Option("auto", "--retime",
                                help="tum-rgbd time stamps: auto (rewrite to t0 + j/30 s only "
                                     "if frames are <= 1/32 s apart, which MonoGS drops), never, "
                                     "always."),

@@ -4,11 +4,19 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import typer
-from rich.console import Console
+from rich.text import Text
 
 from egs_bench.cli.app import app
+from egs_bench.cli.app import out as _out
+from egs_bench.cli.choices import EnslamFrames, FrameStamp, TimesUnit
+
+
+def _topic(option: str, what: str) -> Any:
+    """A topic-name option of ``import-recording``."""
+    return typer.Option(None, option, help=f"{what}: topic name (default: the preset's).")
 
 
 @app.command("import-recording")
@@ -27,13 +35,13 @@ def import_recording_cmd(
                                       "known rig or dataset (`egs-bench recording-presets`)."),
     frames: Path | None = typer.Option(None, "--frames", help="Frames: AEDAT4, .bag or image "
                                        "folder (default: the --events file)."),
-    events_topic: str | None = typer.Option(None, "--events-topic"),
-    frames_topic: str | None = typer.Option(None, "--frames-topic"),
+    events_topic: str | None = _topic("--events-topic", "Events (EventArray) in the --events bag"),
+    frames_topic: str | None = _topic("--frames-topic", "Frames (Image) in the --frames bag"),
     exposure_topic: str | None = typer.Option(None, "--exposure-topic",
                                               help="std_msgs/Int32 exposure in us per frame "
                                                    "(DAVIS driver: /dvs/exposure)."),
-    depth_topic: str | None = typer.Option(None, "--depth-topic"),
-    gt_topic: str | None = typer.Option(None, "--gt-topic"),
+    depth_topic: str | None = _topic("--depth-topic", "Depth maps (Image) in the --depth bag"),
+    gt_topic: str | None = _topic("--gt-topic", "Mocap poses in the --gt bag"),
     camera_info_topic: str | None = typer.Option(None, "--camera-info-topic",
                                                  help="Take the event camera's calibration from "
                                                       "this CameraInfo topic of the events bag."),
@@ -42,18 +50,18 @@ def import_recording_cmd(
                                                  "stamp per line."),
     depth_times: Path | None = typer.Option(None, "--depth-times",
                                             help="For a depth folder: one stamp per line."),
-    times_unit: str = typer.Option("us", "--times-unit",
+    times_unit: TimesUnit = typer.Option("us", "--times-unit",
                                    help="Unit of times files: us, ms, s, ns."),
-    frame_stamp: str | None = typer.Option(None, "--frame-stamp",
+    frame_stamp: FrameStamp | None = typer.Option(None, "--frame-stamp",
                                            help="What a single frame stamp marks: start, mid or "
                                                 "end of the exposure (default: the preset's, else "
                                                 "mid)."),
-    exposure_us: int | None = typer.Option(None, "--exposure-us",
+    exposure_us: int | None = typer.Option(None, "--exposure-us", min=1,
                                            help="Constant exposure time when the source has none."),
-    max_depth_dt_ms: float = typer.Option(15.0, "--max-depth-dt-ms",
+    max_depth_dt_ms: float = typer.Option(15.0, "--max-depth-dt-ms", min=0.0,
                                           help="Largest time between an exposure end and the "
                                                "depth map used for it."),
-    max_gt_gap_ms: float = typer.Option(50.0, "--max-gt-gap-ms",
+    max_gt_gap_ms: float = typer.Option(50.0, "--max-gt-gap-ms", min=0.0,
                                         help="Largest gap between the mocap poses around an "
                                              "exposure end (mocap dropouts drop the frame)."),
     first_frame: int = typer.Option(0, "--first-frame", min=0,
@@ -66,7 +74,7 @@ def import_recording_cmd(
                                           "groundtruth), e.g. depth='Azure Kinect'; repeatable."),
     overwrite: bool = typer.Option(False, "--overwrite",
                                    help="Replace an existing sequence folder."),
-    progress: bool = typer.Option(True, "--progress/--no-progress"),
+    progress: bool = typer.Option(True, "--progress/--no-progress", help="Show a progress bar."),
 ) -> None:
     """Import a real event + RGB-D + mocap recording as a sequence folder (ATE-only scoring)."""
     from egs_bench.recordings import RecordingSpec, import_recording
@@ -82,12 +90,12 @@ def import_recording_cmd(
         max_frames=max_frames, name=name, preset=preset, sensors=parse_sensor_names(sensor),
     )  # fmt: skip
     path = import_recording(spec, out, overwrite=overwrite, progress=progress)
-    Console().print(f"wrote {path}")
+    _out.print(f"wrote {path}")
 
 
 @app.command("make-calib")
 def make_calib_cmd(
-    out: Path = typer.Option(..., "--out", "-o", help="calib.yaml to write (must not exist)."),
+    out: Path = typer.Option(..., "--out", "-o", help="calib.yaml to write."),
     kalibr: Path | None = typer.Option(None, "--kalibr", help="Kalibr camchain.yaml holding the "
                                                              "event camera (e.g. MVSEC's)."),
     camera: str = typer.Option("cam0", "--camera", help="Camera entry in the Kalibr file."),
@@ -100,13 +108,16 @@ def make_calib_cmd(
                                              "(MVSEC): depth_camera: event."),
     preset: str | None = typer.Option(None, "--preset", help="Fill what the preset implies "
                                                              "(mvsec-indoor: --depth-on-event)."),
+    overwrite: bool = typer.Option(False, "--overwrite",
+                                   help="Replace an existing text file at --out."),
 ) -> None:
     """Write a calib.yaml template (identity transforms, zero offsets) to edit."""
     from egs_bench.recordings.calib import write_calib_template
 
     path = write_calib_template(out, kalibr=kalibr, camera=camera, ros_yaml=ros_yaml,
-                                depth_on_event=depth_on_event, preset=preset)
-    Console().print(f"wrote {path} (check every value before importing)")
+                                depth_on_event=depth_on_event, preset=preset,
+                                overwrite=overwrite)
+    _out.print(f"wrote {path} (check every value before importing)")
 
 
 @app.command("recording-presets")
@@ -114,18 +125,17 @@ def recording_presets_cmd() -> None:
     """List the recording presets of `import-recording` with their topics and downloads."""
     from egs_bench.recordings import PRESETS
 
-    console = Console(highlight=False)
     for p in PRESETS.values():
-        console.print(f"[bold]{p.name}[/]: {p.description}")
+        _out.print(Text.assemble((p.name, "bold"), f": {p.description}"))
         topics = {"events": p.events_topic, "frames": p.frames_topic,
                   "exposure": p.exposure_topic, "depth": p.depth_topic, "gt": p.gt_topic}
-        console.print("  topics: " + ", ".join(f"{k} {v}" for k, v in topics.items() if v))
-        console.print(f"  frame stamp: {p.frame_stamp}; depth: {p.depth_source}; "
+        _out.print("  topics: " + ", ".join(f"{k} {v}" for k, v in topics.items() if v))
+        _out.print(f"  frame stamp: {p.frame_stamp}; depth: {p.depth_source}; "
                       f"events_on_frame_sensor: {str(p.events_on_frame_sensor).lower()}")
         for d in p.downloads:
-            console.print(f"  download: {d}")
+            _out.print(f"  download: {d}")
         for n in p.notes:
-            console.print(f"  note: {n}")
+            _out.print(f"  note: {n}")
 
 
 @app.command("import-enslam")
@@ -138,14 +148,16 @@ def import_enslam_cmd(
                                "offsets; event_camera defaults to davis346/intrinsic."),
     exposure_us: int = typer.Option(..., "--exposure-us", min=1,
                                     help="Exposure time of the frames (the layout has none)."),
-    frame_stamp: str = typer.Option(..., "--frame-stamp",
-                                    help="What a frame's stamp marks: start, mid or end."),
-    frames: str = typer.Option("rgbd", "--frames", help="rgbd (RealSense colour, EN-SLAM's "
-                               "input) or davis (DAVIS346 APS frames)."),
-    max_depth_dt_ms: float = typer.Option(15.0, "--max-depth-dt-ms",
+    frame_stamp: FrameStamp = typer.Option(..., "--frame-stamp",
+                                           help="What a frame's stamp marks: start, mid or "
+                                                "end."),
+    frames: EnslamFrames = typer.Option("rgbd", "--frames",
+                                        help="rgbd (RealSense colour, EN-SLAM's input) or "
+                                             "davis (DAVIS346 APS frames)."),
+    max_depth_dt_ms: float = typer.Option(15.0, "--max-depth-dt-ms", min=0.0,
                                           help="Largest time between an exposure end and the "
                                                "depth map used for it."),
-    max_gt_gap_ms: float = typer.Option(50.0, "--max-gt-gap-ms",
+    max_gt_gap_ms: float = typer.Option(50.0, "--max-gt-gap-ms", min=0.0,
                                         help="Largest gap between the poses around an "
                                              "exposure end."),
     first_frame: int = typer.Option(0, "--first-frame", min=0,
@@ -169,4 +181,4 @@ def import_enslam_cmd(
         max_gt_gap_us=int(round(max_gt_gap_ms * 1000)), first_frame=first_frame,
         max_frames=max_frames, name=name, sensors=parse_sensor_names(sensor),
         overwrite=overwrite, progress=progress)
-    Console().print(f"wrote {path}")
+    _out.print(f"wrote {path}")

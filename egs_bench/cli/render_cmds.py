@@ -9,9 +9,8 @@ import numpy as np
 import typer
 
 from egs_bench.cli.app import app
+from egs_bench.cli.choices import MapBackend, MapColors
 from egs_bench.errors import ConfigError
-
-BACKENDS = ("auto", "numba", "gsplat")
 
 
 def _parse_pose(text: str) -> np.ndarray:
@@ -47,7 +46,7 @@ def render_map(
     exposure: bool = typer.Option(False, "--exposure",
                                   help="Apply the frame's exposure compensation (brightness "
                                        "of the observed frame; the run's renders do not)."),
-    colors: str = typer.Option("auto", "--colors",
+    colors: MapColors = typer.Option("auto", "--colors",
                                help="Without an appearance file: auto (from the file), linear "
                                     "(sRGB-encode) or display (as stored)."),
     width: int = typer.Option(None, min=1, help="Image width in pixels [default: the run's "
@@ -63,7 +62,7 @@ def render_map(
                                                 "covering [u, u+1) (OpenCV cx + 0.5) "
                                                 "[default: the image centre]."),
     cy: float = typer.Option(None, "--cy", help="Principal point y, as --cx."),
-    backend: str = typer.Option("auto", help="Rasteriser backend: auto, numba, gsplat."),
+    backend: MapBackend = typer.Option("auto", help="Rasteriser backend: auto, numba, gsplat."),
     overwrite: bool = typer.Option(False, "--overwrite",
                                    help="Replace an existing PNG at --out."),
 ) -> None:
@@ -72,8 +71,6 @@ def render_map(
     from egs_bench.outputs import prepare_output
     from egs_bench.slam.map_export import open_map, render_map_view, view_camera
 
-    if backend not in BACKENDS:
-        raise ConfigError(f"--backend must be one of {', '.join(BACKENDS)}, not {backend!r}")
     pose_wc = _parse_pose(pose) if pose else None
     prepare_output(out, "png", overwrite=overwrite, inputs=[source, appearance])
     src = open_map(source, appearance)

@@ -6,7 +6,8 @@ from pathlib import Path
 
 import typer
 
-from egs_bench.cli.app import app
+from egs_bench.cli.app import SEED_MAX, app
+from egs_bench.cli.choices import ListWhat, SlamPreset
 
 
 @app.command("run")
@@ -17,7 +18,7 @@ def run_cmd(
     seq: str = typer.Option(..., "--seq", "-s",
                             help="Sequence folder, or a name under $EGS_BENCH_DATA "
                                  "(default ./data)."),
-    preset: str = typer.Option("auto", "--preset",
+    preset: SlamPreset = typer.Option("auto", "--preset",
                                help="Compute budget: auto (paper on CUDA, cpu on a CPU), "
                                     "paper (the paper's iterations and resolution, GPU-sized) "
                                     "or cpu (same method, reduced resolution/iterations)."),
@@ -25,7 +26,8 @@ def run_cmd(
                                     help="Run folder to write (default runs/<method>/<seq>)."),
     device: str = typer.Option("auto", "--device",
                                help="auto (CUDA when present), cpu, cuda or cuda:N."),
-    seed: int = typer.Option(0, "--seed", help="Random seed (CPU runs are deterministic)."),
+    seed: int = typer.Option(0, "--seed", min=0, max=SEED_MAX,
+                             help="Random seed (CPU runs are deterministic)."),
     max_frames: int | None = typer.Option(None, "--max-frames", min=1,
                                           help="Process only the first N frames (N >= 1)."),
     evaluate: bool = typer.Option(False, "--eval",
@@ -70,20 +72,17 @@ def _echo_methods() -> None:
 
 @app.command("list")
 def list_cmd(
-    what: str = typer.Argument(..., help="What to list: methods (SLAM methods) or scenes "
+    what: ListWhat = typer.Argument(..., help="What to list: methods (SLAM methods) or scenes "
                                          "(built-in synthetic scenes)."),
 ) -> None:
     """List registered things: `egs-bench list methods`, `egs-bench list scenes`."""
     if what == "methods":
         _echo_methods()
-    elif what == "scenes":
+    else:  # scenes (typer refuses other values)
         from egs_bench.datasets.synthetic import list_scenes
 
         for name, desc in list_scenes().items():
             typer.echo(f"{name:24s} {desc}")
-    else:
-        typer.echo(f"cannot list {what!r}: choose methods or scenes", err=True)
-        raise typer.Exit(2)
 
 
 @app.command("list-methods")

@@ -5,10 +5,10 @@ from __future__ import annotations
 from pathlib import Path
 
 import typer
-from rich.console import Console
 from rich.table import Table
 
-from egs_bench.cli.app import app
+from egs_bench.cli.app import SEED_MAX, app
+from egs_bench.cli.app import out as _out
 
 
 @app.command("make-synthetic")
@@ -31,7 +31,8 @@ def make_synthetic_cmd(
              "20 ms at 448 px width; 0: static camera).",
     ),
     seed: int = typer.Option(
-        0, "--seed", help="Seed of the hand-held motion (and of the event simulator)."
+        0, "--seed", min=0, max=SEED_MAX,
+        help="Seed of the hand-held motion (and of the event simulator)."
     ),
     trajectory: Path | None = typer.Option(
         None, "--trajectory",
@@ -59,7 +60,7 @@ def make_synthetic_cmd(
         speed=speed, seed=seed, trajectory=trajectory, time_scale=time_scale,
         supersample=supersample, gain=gain, progress=progress, overwrite=overwrite,
     )  # fmt: skip
-    Console().print(f"wrote {path}")
+    _out.print(f"wrote {path}")
 
 
 @app.command("list-scenes")
@@ -74,8 +75,7 @@ def list_scenes_cmd() -> None:
     table.add_column("description")
     for name, description in list_scenes().items():
         table.add_row(name, description)
-    console = Console()
-    console.print(table)
+    _out.print(table)
     seqs = Table(title=f"built-in sequences (--seq NAME; generated on first use in {data_root()})")
     for col in ("name", "scene", "frames", "size", "exposure ms", "speed", "here", "description"):
         seqs.add_column(col, no_wrap=col in ("name", "scene", "size"))
@@ -83,4 +83,4 @@ def list_scenes_cmd() -> None:
         seqs.add_row(name, spec.scene, str(spec.frames), f"{spec.width}x{spec.height}",
                      f"{spec.exposure_ms:g}", f"{spec.speed:g}",
                      "yes" if (data_root() / name).is_dir() else "", spec.description)
-    console.print(seqs)
+    _out.print(seqs)

@@ -66,7 +66,9 @@ def sequence_summary(seq: Sequence, max_frames_for_blur: int = 20) -> dict[str, 
         "intrinsics": {k: round(float(seq.meta[k]), 4) for k in ("fx", "fy", "cx", "cy")},
         "exposure_ms": seq.exposure_us / 1000.0,
         "has_sharp_gt": seq.has_sharp,
-        "event_thresholds": {"pos": seq.pos_threshold, "neg": seq.neg_threshold},
+        # a real recording's meta.yaml has no thresholds: the reader's default is no fact about it
+        "event_thresholds": ({"pos": seq.pos_threshold, "neg": seq.neg_threshold}
+                             if "event_thresholds" in seq.meta else "not recorded"),
         "eps": seq.eps,
         "crf": (seq.meta.get("crf") or {}).get("description", "unknown"),
     }

@@ -182,7 +182,11 @@ def _read_torchvision(path: Path, net: str) -> list:
         return [(state[f"features.{i}.weight"].numpy().astype(np.float32),
                  state[f"features.{i}.bias"].numpy().astype(np.float32))
                 for i in _TV_CONV_INDEX[net]]
-    except (KeyError, RuntimeError, OSError, AttributeError) as exc:
+    except pickle.UnpicklingError:
+        # torch's own message advises weights_only=False, which would run the file's code
+        raise InputError(path, f"not a torchvision {net} state_dict (not a PyTorch tensor "
+                               "file that loads without running code)") from None
+    except (KeyError, RuntimeError, OSError, AttributeError, EOFError, ValueError) as exc:
         raise InputError(path, f"not a torchvision {net} state_dict ({exc})") from None
 
 

@@ -247,7 +247,9 @@ def run_slurm(runs: Sequence[RunSpec], options: SlurmOptions, *, cluster: str = 
     if not runs:
         return {}
     sweep_dir = Path(runs[0].sweep_dir)
-    executor = submitit.AutoExecutor(folder=sweep_dir / STATE_DIR / "submitit" / "%j",
+    # one folder for every job: submitit names its files by job id; a "%j" in the folder would
+    # also be created literally, as an empty folder named %j
+    executor = submitit.AutoExecutor(folder=sweep_dir / STATE_DIR / "submitit",
                                      cluster=cluster)
     params = {"timeout_min": int(round(options.timeout_min)), "name": options.name,
               "cpus_per_task": options.cpus_per_task, "gpus_per_node": options.gpus_per_node,

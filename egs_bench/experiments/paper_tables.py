@@ -171,7 +171,10 @@ def _latex_head(text: str) -> str:
 
 
 def _latex_stub(text: str) -> str:
-    return _LATEX_SYMBOLS.get(text) or latex_escape(text)
+    # a stub may hold a metric's Markdown header (the rendering table's rows): its Unicode
+    # arrow becomes the math arrow every other LaTeX header uses
+    return _LATEX_SYMBOLS.get(text) or latex_escape(text).replace(
+        "↑", r"$\uparrow$").replace("↓", r"$\downarrow$")
 
 
 def render_latex(table: PaperTable, label: str | None = None, width: str = "auto") -> str:
@@ -454,13 +457,17 @@ def write_tables(tables: dict[str, PaperTable], out_dir: str | Path, *, label_pr
     that inputs them all, for checking with pdflatex); returns the written paths.
 
     Raises:
-        OutputError: an output exists and ``overwrite`` is false, or is not a text file.
+        OutputError: an output exists and ``overwrite`` is false, or is not a text file;
+            ``out_dir`` exists and is not a folder.
     """
+    from egs_bench.errors import OutputError
     from egs_bench.experiments.latex_check import minimal_document
     from egs_bench.fileio import write_text_atomic
     from egs_bench.outputs import prepare_output
 
     out = Path(out_dir)
+    if out.exists() and not out.is_dir():  # the named output exists, of another kind
+        raise OutputError(out, "already exists and is not a folder; choose another --out")
     targets = [out / f"{n}.{ext}" for n in tables for ext in ("tex", "md")] + [out / "tables.tex"]
     for target in targets:  # all checked before anything is written
         prepare_output(target, "text", overwrite=overwrite, option="--out")

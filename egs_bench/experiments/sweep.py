@@ -272,5 +272,6 @@ def run_sweep(spec: SweepSpec, *, out: Path | None = None,
             outcomes = run_slurm(todo, spec.slurm, cluster=cluster, force=force,
                                  retry_failed=retry_failed, wait=wait, say=say)
     df = summary_table(selected, outcomes, invoked=not status_only)
-    md = write_summary(out, df)
+    # a dry run writes nothing, not even the summary (an earlier real summary stays)
+    md = summary_markdown(df) if dry_run else write_summary(out, df)
     return SweepReport(out, runs, [r.run_id for r in selected], df, md, outcomes, ungenerated)

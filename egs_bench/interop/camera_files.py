@@ -48,6 +48,12 @@ def _real(v: float) -> str:
     return text if ("." in text or "e" in text or "inf" in text or "nan" in text) else text + ".0"
 
 
+def _frame_rate(fps: float) -> float:
+    """The frame rate to 3 decimals (Hz): frame periods are whole microseconds, so 30 Hz comes
+    out as 30.00030000299998, which ORB-SLAM2 uses only as a frame count."""
+    return round(float(fps), 3)
+
+
 def _header(cam: Intrinsics, name: str) -> str:
     return _HEADER.format(name=name, w=cam.width, h=cam.height)
 
@@ -119,7 +125,7 @@ def orbslam2_settings(cam: Intrinsics, *, fps: float, depth_scale: float, name: 
              "Camera.k1: 0.0", "Camera.k2: 0.0", "Camera.p1: 0.0", "Camera.p2: 0.0",
              "Camera.k3: 0.0",
              f"Camera.width: {cam.width}", f"Camera.height: {cam.height}",
-             f"Camera.fps: {_real(fps)}",
+             f"Camera.fps: {_real(_frame_rate(fps))}",
              f"Camera.bf: {_real(ORB_BASELINE_M * cam.fx)}",
              "Camera.RGB: 0",
              f"ThDepth: {_real(ORB_TH_DEPTH)}",

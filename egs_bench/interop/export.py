@@ -63,7 +63,7 @@ from typing import Any, overload
 import numpy as np
 import yaml
 
-from egs_bench.errors import ConfigError, InputError
+from egs_bench.errors import ConfigError, InputError, OutputError
 from egs_bench.fileio import atomic_dir, to_plain
 from egs_bench.geometry import write_tum
 from egs_bench.images import image_header, write_depth_png, write_ldr_image
@@ -113,13 +113,13 @@ def _check_out(out: Path, overwrite: bool) -> None:
     if not out.exists():
         return
     if not out.is_dir():
-        raise InputError(out, "exists and is not a folder")
+        raise OutputError(out, "exists and is not a folder")
     if not any(out.iterdir()):
         return
     if not overwrite:
-        raise InputError(out, "already exists (pass --overwrite to replace an earlier export)")
+        raise OutputError(out, "already exists (pass --overwrite to replace an earlier export)")
     if not (out / MANIFEST).is_file():
-        raise InputError(out, f"is not an egs-bench export (no {MANIFEST}); refusing to replace "
+        raise OutputError(out, f"is not an egs-bench export (no {MANIFEST}); refusing to replace "
                               "it, choose another output folder")
 
 

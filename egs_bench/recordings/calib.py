@@ -45,6 +45,7 @@ import numpy as np
 import yaml
 
 from egs_bench.errors import InputError
+from egs_bench.fileio import read_text
 from egs_bench.recordings.camera import CameraModel
 
 #: a rotation whose R^T R differs from I by more than this is not a rotation
@@ -289,10 +290,8 @@ def camera_from_ros_yaml(path: str | Path) -> CameraModel:
 
 
 def _read_yaml(path: Path, what: str = "file") -> dict:
-    if not path.is_file():
-        raise InputError(path, f"{what} not found")
     try:
-        raw = yaml.safe_load(path.read_text())
+        raw = yaml.safe_load(read_text(path, what))
     except yaml.YAMLError as exc:
         raise InputError(path, f"not valid YAML ({exc})") from None
     if not isinstance(raw, dict):
@@ -302,21 +301,31 @@ def _read_yaml(path: Path, what: str = "file") -> dict:
 
 def write_calib_template(out: str | Path, *, kalibr: str | Path | None = None,
                          camera: str = "cam0", ros_yaml: str | Path | None = None,
-                         depth_on_event: bool = False, preset: str | None = None) -> Path:
+                         depth_on_event: bool = False, preset: str | None = None,
+                         overwrite: bool = False) -> Path:
     """Write an editable ``calib.yaml``: the event camera from a Kalibr or ROS calibration file
     when given (else placeholders for a DAVIS346), identity transforms, zero time offsets.
 
-    ``preset="mvsec-indoor"`` implies ``depth_on_event`` (MVSEC's depth maps are on the DAVIS
-    grid). The file is only a starting point: extrinsics and offsets must be filled in.
+    ``preset`` is a name of :data:`egs_bench.recordings.presets.PRESETS`; ``"mvsec-indoor"``
+    implies ``depth_on_event`` (MVSEC's depth maps are on the DAVIS grid). The file is only a
+    starting point: extrinsics and offsets must be filled in. An existing ``out`` is replaced
+    only with ``overwrite`` and only if it is a text file (``outputs.prepare_output``).
+
+    Raises:
+        ConfigError: an unknown preset, or both ``kalibr`` and ``ros_yaml``.
+        OutputError: ``out`` exists (without ``overwrite``) or may not be replaced.
     """
     from egs_bench.errors import ConfigError
     from egs_bench.fileio import write_text_atomic
+    from egs_bench.outputs import prepare_output
+    from egs_bench.recordings.presets import PRESETS
 
     out = Path(out)
-    if out.exists():
-        raise ConfigError(f"{out} already exists: not overwriting a calibration")
+    if preset is not None and preset not in PRESETS:
+        raise ConfigError(f"unknown --preset {preset!r}; choose one of {', '.join(PRESETS)}")
     if kalibr is not None and ros_yaml is not None:
         raise ConfigError("give --kalibr or --ros-yaml, not both")
+    prepare_output(out, "text", overwrite=overwrite, inputs=[kalibr, ros_yaml], option="--out")
     if preset == "mvsec-indoor":
         depth_on_event = True
     if kalibr is not None:

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from egs_bench.errors import InputError
+from egs_bench.fileio import read_text
 from egs_bench.geometry import read_tum
 from egs_bench.images import read_depth_png, read_ldr_image
 from egs_bench.recordings.streams import DepthStream, FrameStream, PoseTrack, exposure_windows
@@ -44,7 +45,7 @@ def read_times(path: Path, columns: tuple[int, ...], unit: str = "us") -> np.nda
     if not path.is_file():
         raise InputError(path, "times file not found")
     rows = []
-    for lineno, line in enumerate(path.read_text().splitlines(), start=1):
+    for lineno, line in enumerate(read_text(path, "times file").splitlines(), start=1):
         line = line.split("#", 1)[0].strip()
         if not line:
             continue

@@ -78,8 +78,14 @@ def builtin_methods() -> dict[str, Method]:
 
 
 def _instantiate(obj: Any, origin: str) -> Method:
-    if not isinstance(obj, Method) and callable(obj):
-        obj = obj()
+    # only a class is instantiated: calling any other callable named on the command line (a
+    # function such as os:system) would run it with unchecked effects
+    if not isinstance(obj, Method) and isinstance(obj, type):
+        try:
+            obj = obj()
+        except TypeError as exc:
+            raise ConfigError(f"{origin}: cannot create the method without arguments "
+                              f"({exc})") from None
     if not isinstance(obj, Method):
         raise ConfigError(f"{origin} does not provide a method (name, description, run())")
     return obj

@@ -136,7 +136,7 @@ def test_cli_several_scenes(replica_dir, tmp_path):
     [
         (["--exposure-ms", "40"], "exceeds the frame period"),
         (["--upsample", "many"], "upsample must be 'auto' or a positive integer"),
-        (["--interpolator", "film"], "unknown interpolator"),
+        (["--interpolator", "film"], "'film' is not one of 'depth', 'flow'"),
         (["--resize", "12by3"], "--resize must look like"),
         (["--width", "200"], "larger than"),
     ],

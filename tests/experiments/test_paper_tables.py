@@ -133,6 +133,6 @@ def test_an_unknown_protocol_is_refused_not_tabulated_empty(tmp_path, capsys) ->
                     ["regress", str(sweep / "runs"), str(sweep / "runs"), "--protocol", "tum"]):
         assert main(command) == 2, command
         err = capsys.readouterr().err
-        assert "unknown protocol 'tum'; choose one of egs, monogs" in err
+        assert "'tum' is not one of 'egs', 'monogs'" in err
         assert "Traceback" not in err
     assert not (sweep / "tables").exists()

@@ -21,7 +21,7 @@ import yaml
 from PIL import Image
 
 from egs_bench.datasets.sequence import Sequence
-from egs_bench.errors import InputError
+from egs_bench.errors import InputError, OutputError
 from egs_bench.interop.export import export_sequence, read_export_index
 
 # np.loadtxt warns about the '#' comment lines MonoGS' parser skips
@@ -292,11 +292,11 @@ def test_output_safety(seq: Sequence, tmp_path: Path) -> None:
     user.mkdir()
     (user / "notes.txt").write_text("keep me")
     for overwrite in (False, True):
-        with pytest.raises(InputError, match="mine"):
+        with pytest.raises(OutputError, match="mine"):
             export_sequence(seq, user, fmt="tum-rgbd", overwrite=overwrite)
     assert (user / "notes.txt").read_text() == "keep me"
     out = export_sequence(seq, tmp_path / "exp", fmt="tum-rgbd").path
-    with pytest.raises(InputError, match="--overwrite"):
+    with pytest.raises(OutputError, match="--overwrite"):  # exit code 2, like every output
         export_sequence(seq, out, fmt="tum-rgbd")
     (out / "stale.txt").write_text("x")
     export_sequence(seq, out, fmt="eds", overwrite=True)

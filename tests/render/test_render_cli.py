@@ -42,7 +42,8 @@ def test_render_map_writes_png(tmp_path, plane_ply, capsys):
     (["{tmp}/none.ply"], 3, "none.ply: no such file"),
     (["{ply}", "--pose", "1 2 3"], 2, "--pose needs 7 numbers 'tx ty tz qx qy qz qw', got '1 2 3'"),
     (["{ply}", "--pose", "0 0 0 0 0 0 0"], 2, "non-zero quaternion"),
-    (["{ply}", "--backend", "cuda-magic"], 2, "--backend must be one of auto, numba, gsplat"),
+    (["{ply}", "--backend", "cuda-magic"], 2,
+     "'--backend': Value error, 'cuda-magic' is not one of 'auto', 'numba', 'gsplat'"),
 ])
 def test_render_map_reports_bad_input_in_one_line(tmp_path, plane_ply, capsys, argv, code,
                                                   message):

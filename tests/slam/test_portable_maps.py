@@ -297,7 +297,8 @@ def test_bad_inputs_one_line_each(egs_run, tmp_path, capsys) -> None:
          "junk.json: not valid JSON"),
         (["render-map", ply, "--appearance", str(tmp_path / "other.json"), "-o", png], 3,
          "other.json: not an egs-bench appearance file"),
-        (["render-map", ply, "--colors", "hdr", "-o", png], 2, "unknown colour mode 'hdr'"),
+        (["render-map", ply, "--colors", "hdr", "-o", png], 2,
+         "'hdr' is not one of 'auto', 'linear', 'display'"),
     ]
     for argv, expected_code, message in cases:
         code = main(argv)

@@ -1,0 +1,36 @@
+"""The fixed choices of command-line options, as ``Literal`` types: typer lists them in the help
+(``<se3|sim3|none>``) and refuses anything else as a usage error naming the option.
+
+Each mirrors a constant of the library, which still checks its own arguments for Python
+callers; ``tests/cli/test_cli_options.py`` checks that the two agree.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+Protocol = Literal["egs", "monogs"]  # eval.protocols.PROTOCOLS
+SlamPreset = Literal["auto", "paper", "cpu"]  # "auto" + slam.config.PRESETS
+Alignment = Literal["se3", "sim3", "none"]  # eval.ate.ALIGNMENTS
+PoseRelation = Literal["trans_part", "angle_deg", "angle_rad", "rot_part", "full",
+                       "point_distance"]  # eval.rpe.RELATIONS
+DeltaUnit = Literal["f", "frames", "m", "meters", "d", "deg", "degrees", "r", "rad",
+                    "radians"]  # eval.rpe.DELTA_UNITS
+LpipsNet = Literal["alex", "vgg"]  # eval.lpips.NETS
+BoardFormat = Literal["md", "latex", "csv", "csv-summary"]  # eval.leaderboard.FORMATS
+BoardLayout = Literal["sequence", "method"]  # eval.leaderboard.LAYOUTS
+TableWidth = Literal["auto", "natural", "column", "page"]  # eval.tables.WIDTHS
+ImportFormat = Literal["tum", "orbslam2", "photoslam", "monogs", "rampvo"]  # IMPORT_FORMATS
+QuaternionOrder = Literal["rampvo", "wxyz"]  # baselines.import_runs.QUATERNION_ORDERS
+ExportFormat = Literal["tum-rgbd", "replica", "eds"]  # interop.export.FORMATS
+Retime = Literal["auto", "never", "always"]
+MapColors = Literal["auto", "linear", "display"]
+MapBackend = Literal["auto", "numba", "gsplat"]
+SweepBackend = Literal["local", "slurm"]  # experiments.sweep.BACKENDS
+SubmititCluster = Literal["slurm", "local", "debug"]
+Interpolator = Literal["depth", "flow"]  # datasets.eventreplica.interpolate.INTERPOLATORS
+TimesUnit = Literal["us", "ms", "s", "ns"]
+FrameStamp = Literal["start", "mid", "end"]
+ListWhat = Literal["methods", "scenes"]
+FigureKind = Literal["trajectories", "qualitative"]
+EnslamFrames = Literal["rgbd", "davis"]  # recordings.enslam.FRAME_SOURCES
