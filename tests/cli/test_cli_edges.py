@@ -64,6 +64,8 @@ def _bad_path_cases(tmp: Path, make: bool = True) -> dict[str, tuple[list[str | 
         "export": (["export", missing, out, "-f", "tum-rgbd"], missing),
         "import-recording": (["import-recording", "-o", out, "--events", missing, "--depth",
                               missing, "--gt", missing], missing),
+        "import-enslam": (["import-enslam", "--input", missing, "-o", out, "--calib", missing,
+                           "--exposure-us", "10000", "--frame-stamp", "end"], missing),
         "make-calib": (["make-calib", "-o", out, "--kalibr", missing], missing),
         "sweep": (["sweep", missing], missing),
         "regress": (["regress", missing, missing], missing),
