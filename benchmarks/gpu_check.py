@@ -7,11 +7,14 @@ environment. Steps, each timed and bounded:
 2. the CUDA tests (``pytest -m cuda``: gsplat against the reference rasteriser, SLAM on CUDA
    against the CPU);
 3. the built-in 448x256 sequence (generated on first use);
-4. ``egs`` and ``monogs`` with the ``paper`` preset on its first ``--frames`` frames: FPS,
-   per-frame seconds, ATE and PSNR against the sharp ground truth;
+4. ``egs`` and ``monogs`` with the ``paper`` preset on its first ``--frames`` frames, once per
+   mapping schedule (``--schedules``: ``mapping_mode`` sequential and concurrent): FPS,
+   per-frame seconds, ATE and PSNR against the sharp ground truth, tracking iterations per
+   frame; a run that would start after ``--until-s`` seconds is left out and listed as such;
 5. the overhead counts of ``bench_slam_overhead.py`` with wall time per iteration.
 
-Everything lands in one JSON file (``--json``, default ``gpu_check.json``).
+Everything lands in one JSON file (``--json``, default ``gpu_check.json``) and its Markdown
+table next to it (``gpu_check.md``), the table BENCHMARKS.md shows.
 """
 
 from __future__ import annotations
@@ -84,17 +87,16 @@ def cuda_tests(timeout_s: float) -> dict:
             "log_tail": lines[-40:]}
 
 
-def run_method(method: str, seq, frames: int, out_root: Path) -> dict:
+def run_method(method: str, seq, frames: int, out: Path, schedule: str) -> dict:
     import numpy as np
 
     from egs_bench.eval.ate import ate_from_files
     from egs_bench.eval.image_metrics import psnr
-    from egs_bench.runs.registry import get_method
+    from egs_bench.runs.registry import get_method, with_options
 
-    out = out_root / method
     t = time.perf_counter()
-    run = get_method(method).run(seq, out, preset="paper", device="cuda", seed=0,
-                                 max_frames=frames, progress=False)
+    run = with_options(get_method(method), {"mapping_mode": schedule}).run(
+        seq, out, preset="paper", device="cuda", seed=0, max_frames=frames, progress=False)
     wall = time.perf_counter() - t
     timing = json.loads((run.path / "timing.json").read_text())
     stats = json.loads((run.path / "slam_stats.json").read_text())
@@ -108,16 +110,50 @@ def run_method(method: str, seq, frames: int, out_root: Path) -> dict:
             "per_frame_s_median": float(np.median(per_frame[1:])) if len(per_frame) > 1
             else None,
             "per_frame_s": per_frame, "keyframes": stats["keyframes"],
+            "tracking_iterations_mean": float(np.mean(stats["tracking_iterations"][1:]))
+            if len(stats["tracking_iterations"]) > 1 else None,
             "gaussians": stats["gaussians"], "divergences": len(stats["divergences"]),
             "fps_after_frame0": (len(per_frame) - 1) / sum(per_frame[1:])
             if len(per_frame) > 1 else None,
             "ate_rmse_cm": 100 * ate.rmse, "psnr_db": float(np.mean(psnrs)) if psnrs else None}
 
 
+def markdown_table(report: dict) -> str:
+    """The runs of a check as the Markdown table of BENCHMARKS.md."""
+    env, seq = report.get("environment", {}), report.get("sequence", {})
+    lines = [f"{env.get('device', '?')}, torch {env.get('torch', '?')}, gsplat "
+             f"{env.get('gsplat', '?')}; {seq.get('name', '?')} {seq.get('resolution', '')}, "
+             f"first {seq.get('frames_used', '?')} frames, paper budget, seed 0, "
+             f"{report.get('date', '')}", "",
+             "| method | mapping | FPS | FPS after frame 0 | frame 0 s | per-frame s (median) "
+             "| tracking iterations / frame | ATE cm | PSNR dB |",
+             "|:--|:--|--:|--:|--:|--:|--:|--:|--:|"]
+
+    def num(value, digits: int) -> str:
+        return "--" if value is None else f"{value:.{digits}f}"
+
+    for key, r in report.get("runs", {}).items():
+        method, schedule = key.split("/")
+        if "skipped" in r:
+            lines.append(f"| {method} | {schedule} | not run ({r['skipped']}) "
+                         "| | | | | | |")
+            continue
+        lines.append(f"| {method} | {schedule} | {num(r['fps'], 2)} "
+                     f"| {num(r['fps_after_frame0'], 2)} | {num(r['frame0_s'], 1)} "
+                     f"| {num(r['per_frame_s_median'], 2)} "
+                     f"| {num(r['tracking_iterations_mean'], 1)} | {num(r['ate_rmse_cm'], 2)} "
+                     f"| {num(r['psnr_db'], 2)} |")
+    return "\n".join(lines)
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--seq", default="office1", help="448x256 built-in sequence (or folder)")
-    ap.add_argument("--frames", type=int, default=50, help="frames per method")
+    ap.add_argument("--frames", type=int, default=40, help="frames per run")
+    ap.add_argument("--schedules", default="sequential,concurrent",
+                    help="mapping_mode values to run each method with")
+    ap.add_argument("--until-s", type=float, default=540.0,
+                    help="start no run after this many seconds of the check")
     ap.add_argument("--methods", default="egs,monogs")
     ap.add_argument("--json", type=Path, default=Path("gpu_check.json"))
     ap.add_argument("--out", type=Path, default=Path("gpu_check_runs"),
@@ -126,6 +162,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--test-timeout", type=float, default=240.0)
     args = ap.parse_args(argv)
     report: dict = {"date": time.strftime("%Y-%m-%d %H:%M:%S"), "command": sys.argv}
+    t_check = time.perf_counter()
 
     def save() -> None:
         args.json.write_text(json.dumps(report, indent=1) + "\n")
@@ -152,23 +189,32 @@ def main(argv: list[str] | None = None) -> int:
                           "frames_used": frames}
     print(f"[3/5] sequence {seq.name} {seq.width}x{seq.height} "
           f"({report['seconds']['sequence']} s)", flush=True)
-    report["methods"] = {}
+    report["runs"] = {}
     from egs_bench.runs.folder import RunFolder
 
     for method in args.methods.split(","):
-        import shutil
+        for schedule in args.schedules.split(","):
+            import shutil
 
-        if (args.out / method).exists():
-            if not RunFolder.is_run_folder(args.out / method):
-                raise SystemExit(f"gpu_check: {args.out / method} exists and is not a run "
-                                 "folder; choose another --out")
-            shutil.rmtree(args.out / method)  # a run folder of an earlier check
-        with _timed(report, f"run_{method}"):
-            report["methods"][method] = r = run_method(method, seq, frames, args.out)
-        print(f"[4/5] {method}: {r['fps']:.2f} FPS over {frames} frames "
-              f"({r['fps_after_frame0']:.2f} after frame 0; frame 0 {r['frame0_s']:.1f} s), "
-              f"ATE {r['ate_rmse_cm']:.2f} cm, PSNR {r['psnr_db']:.2f} dB", flush=True)
-        save()
+            key = f"{method}/{schedule}"
+            out = args.out / method / schedule
+            if time.perf_counter() - t_check > args.until_s:
+                report["runs"][key] = {"skipped": f"past --until-s {args.until_s:.0f} s"}
+                print(f"[4/5] {key}: not run (past --until-s)", flush=True)
+                continue
+            if out.exists():
+                if not RunFolder.is_run_folder(out):
+                    raise SystemExit(f"gpu_check: {out} exists and is not a run folder; "
+                                     "choose another --out")
+                shutil.rmtree(out)  # a run folder of an earlier check
+            with _timed(report, f"run_{method}_{schedule}"):
+                report["runs"][key] = r = run_method(method, seq, frames, out, schedule)
+            print(f"[4/5] {key}: {r['fps']:.2f} FPS over {frames} frames "
+                  f"({r['fps_after_frame0']:.2f} after frame 0; frame 0 {r['frame0_s']:.1f} s), "
+                  f"ATE {r['ate_rmse_cm']:.2f} cm, PSNR {r['psnr_db']:.2f} dB, "
+                  f"{r['tracking_iterations_mean']:.1f} tracking iterations/frame", flush=True)
+            save()
+            args.json.with_suffix(".md").write_text(markdown_table(report) + "\n")
     sys.path.insert(0, str(ROOT / "benchmarks"))
     from bench_slam_overhead import measure
 

@@ -20,6 +20,7 @@ themselves from :mod:`egs_bench.slam.methods`; users add methods by
 from __future__ import annotations
 
 import importlib
+import inspect
 from importlib.metadata import entry_points
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
@@ -78,9 +79,9 @@ def builtin_methods() -> dict[str, Method]:
 
 
 def _instantiate(obj: Any, origin: str) -> Method:
-    # only a class is instantiated: calling any other callable named on the command line (a
-    # function such as os:system) would run it with unchecked effects
-    if not isinstance(obj, Method) and isinstance(obj, type):
+    # Only a class or a Python function written to return a method is called: a builtin
+    # named on the command line (os:system) would run with unchecked effects.
+    if not isinstance(obj, Method) and (isinstance(obj, type) or inspect.isfunction(obj)):
         try:
             obj = obj()
         except TypeError as exc:
@@ -133,7 +134,6 @@ def get_method(name: str) -> Method:
 
 def supports_overwrite(method: Method) -> bool:
     """Whether ``method.run`` accepts ``overwrite`` (needed by ``egs-bench run --overwrite``)."""
-    import inspect
 
     try:
         params = inspect.signature(method.run).parameters

@@ -29,6 +29,7 @@ CrfKind = Literal["learnable", "srgb", "identity"]
 CrfInit = Literal["linear", "srgb"]
 MotionModel = Literal["constant-position", "constant-velocity"]
 Backend = Literal["auto", "numba", "reference", "gsplat"]
+MappingMode = Literal["sequential", "concurrent"]
 
 
 @dataclass(frozen=True)
@@ -116,6 +117,9 @@ class MappingConfig:
     """How the map (and keyframe poses, exposures, the CRF) are optimised."""
 
     refine_poses: bool = False          # refine the newest keyframes' trajectories in mapping
+    # "sequential": a keyframe's mapping round runs before the next frame is tracked;
+    # "concurrent": beside the next frames' tracking (egs_bench/slam/scheduling.py).
+    mapping_mode: MappingMode = "sequential"
     n_random_kfs: int = 2               # (paper, MonoGS) older keyframes added per iteration
     kf_pose_lr_scale: float = 0.5       # (MonoGS) keyframe pose lr = 0.5 x tracking lr
     prune_opacity: float = 0.1          # periodic pruning below this opacity
@@ -152,6 +156,9 @@ class BudgetConfig:
     converged_threshold: float = 1e-4   # (MonoGS) |twist| after a step
     init_iters: int = 1050              # (MonoGS) mapping iterations on frame 0
     mapping_iters: int = 150            # (MonoGS single process) per new keyframe
+    # Concurrent mapping: iterations run beside each frame (None: mapping_iters spread over
+    # keyframes.interval frames, so a round ends before the next keyframe can arrive).
+    mapping_iters_per_frame: int | None = None
     views_per_iter: int | None = None   # None = whole mapping set every iteration (MonoGS)
     window_size: int = 10               # (paper)
     pose_window: int = 5                # (paper) newest keyframes refined when refine_poses
@@ -295,6 +302,8 @@ class SlamConfig:
                  "must be in (0, 1)")
         _require(t.convergence_patience >= 1, "tracking.convergence_patience", "must be >= 1")
         _require(k.interval >= 1, "keyframes.interval", "must be >= 1")
+        _require(b.mapping_iters_per_frame is None or b.mapping_iters_per_frame >= 1,
+                 "budget.mapping_iters_per_frame", "must be >= 1 (or null)")
         for name in ("overlap", "cutoff"):
             _require(0 <= getattr(k, name) <= 1, f"keyframes.{name}", "must be in [0, 1]")
         _require(k.min_translation >= 0 and k.translation >= 0, "keyframes.translation",

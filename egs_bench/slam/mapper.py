@@ -130,8 +130,9 @@ class Mapper:
                     report: Callable[[int, int], None] | None = None) -> MappingRound:
         """A mapping round of :meth:`optimise` (same arguments) to be run in slices:
         ``advance(n)`` runs up to ``n`` of its iterations, ``close()`` ends it (pruning)."""
-        return MappingRound(self, states, observations, window, all_keyframes, iterations,
-                            initial, fixed_end_pose, report)
+        return MappingRound(self, RoundInputs(states, observations, list(window),
+                                              list(all_keyframes)),
+                            iterations, initial, fixed_end_pose, report)
 
     def _host_plan(self, window: list[int], initial: bool, fixed_end_pose: int | None
                    ) -> _HostPlan:
@@ -238,21 +239,30 @@ class Mapper:
         return removed
 
 
+@dataclass
+class RoundInputs:
+    """What a mapping round optimises over: the keyframes' states (refined in place) and
+    observations, the window (newest first) and every keyframe so far."""
+
+    states: dict[int, FrameState]
+    observations: dict[int, FrameObs]
+    window: list[int]
+    all_keyframes: list[int]
+
+
 class MappingRound:
     """One mapping round (map initialisation or a keyframe's) run in slices of iterations
     (:meth:`Mapper.begin_round`); the map must not be edited from outside while it is open."""
 
-    def __init__(self, mapper: Mapper, states: dict[int, FrameState],
-                 observations: dict[int, FrameObs], window: list[int],
-                 all_keyframes: list[int], iterations: int, initial: bool,
+    def __init__(self, mapper: Mapper, inputs: RoundInputs, iterations: int, initial: bool,
                  fixed_end_pose: int | None,
                  report: Callable[[int, int], None] | None) -> None:
-        self.mapper, self.states, self.observations = mapper, states, observations
-        self.window, self.all_keyframes = list(window), list(all_keyframes)
+        self.mapper, self.states, self.observations = mapper, inputs.states, inputs.observations
+        self.window, self.all_keyframes = inputs.window, inputs.all_keyframes
         self.iterations, self.initial, self.report = iterations, initial, report
         self.report_every = max(1, iterations // 50)
         self.opt = mapper._gaussian_optimizer()
-        self.plan = mapper._host_plan(window, initial, fixed_end_pose)
+        self.plan = mapper._host_plan(self.window, initial, fixed_end_pose)
         self.use_exposure = mapper.cfg.method.exposure_compensation and not initial
         self.done = 0
         self.loss = float("nan")

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from collections.abc import Callable
@@ -10,16 +11,17 @@ from dataclasses import dataclass, field
 import numpy as np
 import torch
 
-from egs_bench.errors import InputError
+from egs_bench.errors import ConfigError, InputError
 from egs_bench.geometry import invert_pose
 from egs_bench.interrupts import raise_if_interrupted
 from egs_bench.render import GaussianMap
 from egs_bench.slam.components import SlamComponents
 from egs_bench.slam.config import SlamConfig
 from egs_bench.slam.context import SlamContext
-from egs_bench.slam.crf import make_crf
+from egs_bench.slam.crf import CameraResponse, make_crf
 from egs_bench.slam.frames import FrameObs, FrameState, load_frame
 from egs_bench.slam.keyframes import KeyframeCandidate
+from egs_bench.slam.scheduling import ConcurrentMapping, iterations_per_frame
 from egs_bench.slam.tracker import TrackRequest, TrackResult, last_motion, predict_initial
 
 
@@ -92,6 +94,16 @@ class SlamSystem:
         self.tracker = parts.tracker(self.ctx)
         self.mapper = parts.mapper(self.ctx, self.gmap, self.crf, self.rng)
         self.keyframe_policy = parts.keyframes(self.ctx)
+        self.concurrent: ConcurrentMapping | None = None
+        if cfg.mapping.mapping_mode == "concurrent":
+            if not hasattr(self.mapper, "begin_round"):
+                raise ConfigError("mapping_mode=concurrent needs a mapper with begin_round() "
+                                  f"(mapping rounds in slices); {type(self.mapper).__name__} "
+                                  "has none")
+            per_frame = iterations_per_frame(cfg.budget.mapping_iters, cfg.keyframes.interval,
+                                             cfg.budget.mapping_iters_per_frame)
+            self.concurrent = ConcurrentMapping(per_frame, self.device, self._round_closed)
+        self._kfs: _Keyframes | None = None
 
     # -------------------------------------------------------------------------------- helpers
     def obs(self, i: int) -> FrameObs:
@@ -181,10 +193,30 @@ class SlamSystem:
     def _track(self, i: int, obs: FrameObs, recent_losses: list[float],
                divergences: list[str]) -> tuple[TrackResult, bool]:
         """Track frame ``i``; on divergence re-track once from the previous pose with half the
-        learning rate, and keep the previous pose if that diverges too."""
+        learning rate, and keep the previous pose if that diverges too. With concurrent
+        mapping, this frame's slice of mapping runs meanwhile and tracking reads a snapshot
+        of the map; what it reads of the estimates is copied before the slice starts."""
         request = self._request(i, obs)
-        prev = self.states[-1]
-        tr = self.tracker.track(self.gmap, self.crf, request)
+        prev = dataclasses.replace(self.states[-1])  # mapping may refine the keyframe's state
+        snapshot = self.concurrent.start_slice((self.gmap, self.crf)) if self.concurrent \
+            else None
+        gmap, crf = (snapshot.gmap, snapshot.crf) if snapshot else (self.gmap, self.crf)
+        try:
+            result = self._track_attempts(i, request, prev, (gmap, crf), recent_losses,
+                                          divergences)
+        except BaseException:
+            if self.concurrent is not None:
+                self.concurrent.cancel()  # stop mapping at its next iteration, then re-raise
+            raise
+        if self.concurrent is not None:
+            self.concurrent.end_slice()
+        return result
+
+    def _track_attempts(self, i: int, request: TrackRequest, prev: FrameState,
+                        maps: tuple[GaussianMap, CameraResponse], recent_losses: list[float],
+                        divergences: list[str]) -> tuple[TrackResult, bool]:
+        gmap, crf = maps
+        tr = self.tracker.track(gmap, crf, request)
         why = self._diverged(prev, tr.state, tr.loss, recent_losses)
         if why is None:
             return tr, False
@@ -192,9 +224,9 @@ class SlamSystem:
                  "pose with half the learning rate")
         divergences.append(f"frame {i}: {why}")
         t0, t1 = self.ctx.exposure(i)
-        init = predict_initial(i, self.states, "constant-position", t0, t1, None, None)
-        tr = self.tracker.track(self.gmap, self.crf, TrackRequest(
-            obs, init, request.start_anchor, lr_scale=0.5))
+        init = predict_initial(i, [prev], "constant-position", t0, t1, None, None)
+        tr = self.tracker.track(gmap, crf, TrackRequest(
+            request.obs, init, request.start_anchor, lr_scale=0.5))
         if self._diverged(prev, tr.state, tr.loss, recent_losses) is not None:
             self.log(f"frame {i}: re-tracking diverged too; keeping the previous pose")
             tr.state = FrameState(i, prev.pose1_cw.copy(), prev.pose1_cw.copy(), prev.exp_a,
@@ -216,14 +248,29 @@ class SlamSystem:
         kfs.states[i], kfs.observations[i], kfs.visibility[i] = state, obs, vis
         kfs.window, removed = self.keyframe_policy.update_window(kfs.window, i, kfs.visibility,
                                                                  kfs.poses_cw())
+        if self.concurrent is not None:
+            self.concurrent.finish_queued()  # an open round must not see the map change
         self.insert(obs, state, self.cfg.budget.pcd_downsample, i)
-        self.mapper.optimise(kfs.states, kfs.observations, kfs.window, kfs.ids,
-                             self.cfg.budget.mapping_iters, report=report)
-        for k in kfs.window:  # MonoGS recomputes window visibility after mapping
-            kfs.visibility[k] = self._visibility(kfs.states[k])
+        if self.concurrent is not None:
+            self.concurrent.submit(self.mapper.begin_round(  # type: ignore[attr-defined]
+                kfs.states, kfs.observations, kfs.window, kfs.ids,
+                self.cfg.budget.mapping_iters))
+        else:
+            self.mapper.optimise(kfs.states, kfs.observations, kfs.window, kfs.ids,
+                                 self.cfg.budget.mapping_iters, report=report)
+            self._refresh_visibility(kfs.window)
         if removed:
             self.log(f"frame {i}: keyframe; window -{removed}")
         return True
+
+    def _refresh_visibility(self, window: list[int]) -> None:
+        """MonoGS recomputes the window's visibility sets after each mapping round."""
+        assert self._kfs is not None
+        for k in window:
+            self._kfs.visibility[k] = self._visibility(self._kfs.states[k])
+
+    def _round_closed(self, round_) -> None:
+        self._refresh_visibility(round_.window)
 
     # -------------------------------------------------------------------------------- main loop
     def run(self, n_frames: int, on_frame: Callable[[FrameReport], None] | None = None,
@@ -243,13 +290,25 @@ class SlamSystem:
             raise InputError(self.seq.path, "no frames to process")
         t_wall = time.perf_counter()
         self.states = []  # grows frame by frame: what an interrupted run got done
-        kfs = self._initialise(phase("map init"))
+        kfs = self._kfs = self._initialise(phase("map init"))
         result = SlamResult(self.states, kfs.ids, self.gmap, self.crf)
-        reports = result.reports
-        reports.append(FrameReport(0, float("nan"), self.cfg.budget.init_iters, True, False,
-                                   time.perf_counter() - t_wall))
+        result.reports.append(FrameReport(0, float("nan"), self.cfg.budget.init_iters, True,
+                                          False, time.perf_counter() - t_wall))
         if on_frame:
-            on_frame(reports[-1])
+            on_frame(result.reports[-1])
+        try:
+            self._frames(n_frames, kfs, result, on_frame, phase("mapping"))
+        finally:
+            if self.concurrent is not None:
+                self.concurrent.cancel()
+        self._final_refinement(kfs)
+        result.keyframes = kfs.ids
+        return result
+
+    def _frames(self, n_frames: int, kfs: _Keyframes, result: SlamResult,
+                on_frame: Callable[[FrameReport], None] | None,
+                report: Callable[[int, int], None] | None) -> None:
+        """Frames ``1 .. n_frames-1``: track, maybe make a keyframe (and map), report."""
         recent_losses: list[float] = []
         for i in range(1, n_frames):
             raise_if_interrupted()  # one whose exception was swallowed: stop within a frame
@@ -259,14 +318,13 @@ class SlamSystem:
             if math.isfinite(tr.loss):
                 recent_losses[:] = (recent_losses + [tr.loss])[-20:]
             self.states.append(tr.state)
-            is_kf = not diverged and self._keyframe_step(i, obs, tr.state, kfs, phase("mapping"))
-            reports.append(FrameReport(i, tr.loss, tr.iterations, is_kf, diverged,
-                                       time.perf_counter() - t_frame))
+            is_kf = not diverged and self._keyframe_step(i, obs, tr.state, kfs, report)
+            if i == n_frames - 1 and self.concurrent is not None:
+                self.concurrent.finish_queued()  # the map is complete when the run ends
+            result.reports.append(FrameReport(i, tr.loss, tr.iterations, is_kf, diverged,
+                                              time.perf_counter() - t_frame))
             if on_frame:
-                on_frame(reports[-1])
-        self._final_refinement(kfs)
-        result.keyframes = kfs.ids
-        return result
+                on_frame(result.reports[-1])
 
     def _final_refinement(self, kfs: _Keyframes) -> None:
         iters = self.cfg.mapping.refine_iters

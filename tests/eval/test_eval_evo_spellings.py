@@ -97,7 +97,7 @@ def test_save_results_follows_the_output_rules(shared_data, tmp_path, capsys) ->
     assert main(["ate", gt, est, "-s"]) == 2  # evo's scale-only correction: not offered
     assert "-s / --correct_scale needs -a" in capsys.readouterr().err
     assert main(["ate", gt, est, "-r", "yaw"]) == 2
-    assert "unknown ATE relation 'yaw'" in capsys.readouterr().err
+    assert "'yaw' is not one of 'trans_part'" in capsys.readouterr().err
 
 
 def test_python_api_in_gt_est_order_equals_evos_api(shared_data) -> None:

@@ -181,7 +181,8 @@ def test_bad_dev_reals_input_is_one_line(dev_reals, tmp_path: Path, capsys) -> N
     assert err.startswith(f"error: {other / 'davis346/event/events.csv'}: header is 't,x,y,p'")
     # a bad option
     code, err = _run(["--input", str(root), *base, "--frames", "kinect"], capsys)
-    assert code == 2 and err.startswith("error: --frames 'kinect': choose rgbd or davis")
+    assert code == 2 and err.startswith("error: Invalid value for '--frames'")
+    assert "'kinect' is not one of 'rgbd', 'davis'" in err
     # a row that is not an event
     (other / "davis346/event/events.csv").write_text(
         "x,y,ts_s,ts_n,polarity\n1,2,1700000000,0,True\n3,-4,1700000000,5,False\n")

@@ -1,0 +1,20 @@
+"""``benchmarks/gpu_check.py``'s Markdown table (the GPU campaign's table in BENCHMARKS.md)
+from a check's JSON report, including runs left out by ``--until-s``."""
+
+from __future__ import annotations
+
+from bench_scripts import load_script
+
+
+def test_table_lists_every_run_and_the_ones_left_out() -> None:
+    check = load_script("gpu_check")
+    run = {"fps": 0.5, "fps_after_frame0": 0.8, "frame0_s": 12.34, "per_frame_s_median": 1.25,
+           "tracking_iterations_mean": 37.5, "ate_rmse_cm": 0.875, "psnr_db": 25.125}
+    report = {"environment": {"device": "NVIDIA H200", "torch": "2.11", "gsplat": "1.5.3"},
+              "sequence": {"name": "office1", "resolution": "448x256", "frames_used": 40},
+              "date": "2026-12-02", "runs": {"egs/sequential": run,
+                                             "egs/concurrent": {"skipped": "past --until-s"}}}
+    lines = check.markdown_table(report).splitlines()
+    assert lines[0].startswith("NVIDIA H200, torch 2.11, gsplat 1.5.3; office1 448x256, first 40")
+    assert lines[4] == "| egs | sequential | 0.50 | 0.80 | 12.3 | 1.25 | 37.5 | 0.88 | 25.12 |"
+    assert lines[5].startswith("| egs | concurrent | not run (past --until-s)")
