@@ -459,7 +459,7 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--check", action="store_true",
                     help=f"exit 1 if the model misses a measured FPS by more than "
-                         f"{CHECK_TOLERANCE:.0%}")
+                         f"{CHECK_TOLERANCE * 100:.0f} %%")
     ap.add_argument("--table", action="store_true", help="measured vs model and predictions")
     ap.add_argument("--fit", action="store_true", help="refit the constants, print them")
     ap.add_argument("--run", type=Path, action="append", default=[],
