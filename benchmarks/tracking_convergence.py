@@ -63,13 +63,18 @@ def candidate_rules(budget: int) -> dict[str, Rule]:
     for rel in (0.05, 0.1, 0.2):
         for patience in (3, 5):
             rules[f"relative-step {rel} x{patience}"] = (
-                lambda t, r=rel, p=patience: stop_iteration(t.losses, t.step_norms,
+                lambda t, r=rel, p=patience: stop_iteration(t.losses, t.step_norms, t.poses1_cw,
                                                             "relative-step", r, p, budget))
     for tol in (1e-3, 1e-4):
         for patience in (5, 10):
             rules[f"plateau {tol:g} x{patience}"] = (
-                lambda t, r=tol, p=patience: stop_iteration(t.losses, t.step_norms, "plateau",
-                                                            r, p, budget))
+                lambda t, r=tol, p=patience: stop_iteration(t.losses, t.step_norms, t.poses1_cw,
+                                                            "plateau", r, p, budget))
+    for tol in (0.2, 0.3):
+        for patience in (10, 20):
+            rules[f"net-motion {tol:g} x{patience}"] = (
+                lambda t, r=tol, p=patience: stop_iteration(t.losses, t.step_norms, t.poses1_cw,
+                                                            "net-motion", r, p, budget))
     return rules
 
 

@@ -9,7 +9,12 @@ whole budget. The rules here are relative, so that they mean the same at both bu
   of this frame for ``patience`` iterations in a row (Adam's steps shrink once the gradient's
   sign flips from one iteration to the next, i.e. around the optimum);
 * ``plateau``: the best loss of the last ``patience`` iterations improved on the best before
-  them by at most ``tolerance`` x its value.
+  them by at most ``tolerance`` x its value;
+* ``net-motion``: over the last ``patience`` iterations ``T_tau`` got less than ``tolerance``
+  of the way its steps went (the twist from the pose ``patience`` steps ago, against the sum of
+  the step twists since): the steps go back and forth around an optimum, where a pose still
+  moving towards one keeps going (a frame whose prediction is far off, such as frame 1 without
+  a velocity, keeps its whole budget).
 
 ``fixed`` keeps the budget (only the absolute threshold stops early). The same
 :class:`ConvergenceTest` runs inside the tracker and, replayed over recorded traces, in
@@ -23,7 +28,9 @@ from typing import Literal
 
 import numpy as np
 
-ConvergenceRule = Literal["fixed", "relative-step", "plateau"]
+from egs_bench.geometry.lie import so3_log
+
+ConvergenceRule = Literal["fixed", "relative-step", "plateau", "net-motion"]
 
 
 class ConvergenceTest:
@@ -41,10 +48,23 @@ class ConvergenceTest:
         self.largest_step = 0.0
         self.quiet = 0
         self.best: list[float] = []  # running best loss after each iteration
+        self.poses: list[np.ndarray] = []  # T_tau after each iteration (net-motion)
+        self.path: list[float] = []  # |twist| of each iteration's T_tau step
 
-    def update(self, loss: float, step_norm: float) -> bool:
-        """Record one iteration (its loss and largest twist step); True when tracking may
-        stop after it."""
+    def update(self, loss: float, step_norm: float, pose1_cw: np.ndarray | None = None) -> bool:
+        """Record one iteration: its loss, its largest twist step and (``net-motion``) the
+        world-to-camera ``T_tau`` [4, 4] after it; True when tracking may stop after it."""
+        if self.rule == "net-motion":
+            if pose1_cw is None:
+                raise ValueError("the net-motion rule needs the pose after each iteration")
+            if self.poses:
+                self.path.append(_twist_norm(pose1_cw, self.poses[-1]))
+            self.poses.append(pose1_cw)
+            if len(self.poses) <= self.patience:
+                return False
+            travelled = sum(self.path[-self.patience:])
+            net = _twist_norm(pose1_cw, self.poses[-1 - self.patience])
+            return travelled > 0 and net < self.tolerance * travelled
         if self.rule == "relative-step":
             self.largest_step = max(self.largest_step, step_norm)
             if step_norm < self.tolerance * self.largest_step:
@@ -62,13 +82,19 @@ class ConvergenceTest:
         return False
 
 
-def stop_iteration(losses: np.ndarray, step_norms: np.ndarray, rule: ConvergenceRule,
-                   tolerance: float, patience: int, budget: int) -> int:
+def _twist_norm(a_cw: np.ndarray, b_cw: np.ndarray) -> float:
+    """``|(t, log R)|`` of the relative pose ``a b^-1`` (metres and radians, as the steps)."""
+    rel = a_cw @ np.linalg.inv(b_cw)
+    return float(np.linalg.norm(np.r_[rel[:3, 3], so3_log(rel[:3, :3])]))
+
+
+def stop_iteration(losses: np.ndarray, step_norms: np.ndarray, poses1_cw: np.ndarray,
+                   rule: ConvergenceRule, tolerance: float, patience: int, budget: int) -> int:
     """The number of iterations a frame would have run under ``rule``, replayed over its
-    recorded per-iteration ``losses`` and ``step_norms`` [n] (``budget`` if it never
-    triggers within them)."""
+    recorded per-iteration ``losses``, ``step_norms`` [n] and ``poses1_cw`` [n, 4, 4]
+    (``budget`` if it never triggers within them)."""
     test = ConvergenceTest(rule, tolerance, patience)
     for i, (loss, step) in enumerate(zip(losses, step_norms, strict=True)):
-        if test.update(float(loss), float(step)):
+        if test.update(float(loss), float(step), poses1_cw[i]):
             return i + 1
     return min(budget, len(losses)) if len(losses) else budget

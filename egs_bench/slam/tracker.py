@@ -171,7 +171,8 @@ def track_frame(ctx: SlamContext, gmap: GaussianMap, crf: CameraResponse,
         step_norm = float(np.linalg.norm(steps, axis=-1).max())
         if request.trace:
             trace.append((loss_val, step_norm, pose1.copy()))
-        if settled.update(loss_val, step_norm) or step_norm < cfg.budget.converged_threshold:
+        if settled.update(loss_val, step_norm, pose1) or \
+                step_norm < cfg.budget.converged_threshold:
             converged = True
             break
     if anchor is not None:
