@@ -11,7 +11,8 @@ runs with the rule switched on: ``--set convergence=...``).
         --preset cpu --max-frames 12 [--set KEY=VALUE] [--out bench_out/convergence]
 
 Writes ``traces.npz`` (per frame: losses, step norms, poses) next to the run and prints one
-table row per rule.
+table row per rule. ``--from-traces RUN`` analyses the traces an earlier invocation left in the
+run folder ``RUN`` instead of running again.
 """
 
 from __future__ import annotations
@@ -99,6 +100,26 @@ def analyse(traces: dict[int, TrackTrace], truth_cw: dict[int, np.ndarray],
     return rows
 
 
+def load_traces(path: Path) -> dict[int, TrackTrace]:
+    """The traces that :func:`main` saved in ``path`` (``traces.npz``), by frame."""
+    data = np.load(path)
+    frames = sorted(int(k.rsplit("_", 1)[1]) for k in data if k.startswith("losses_"))
+    return {i: TrackTrace(data[f"losses_{i}"], data[f"step_norms_{i}"],
+                          data[f"poses1_cw_{i}"]) for i in frames}
+
+
+def report(seq, method: str, preset: str, traces: dict[int, TrackTrace], budget: int) -> None:
+    truth = {i: invert_pose(np.asarray(seq.poses[i])) for i in traces}
+    print(f"{seq.name}, {method}, preset {preset}, {len(traces)} tracked frames, "
+          f"budget {budget} iterations")
+    print("| rule | mean iterations | gap to full budget cm (mean / max) | max deg "
+          "| GT error change cm (mean) |")
+    print("|:--|--:|--:|--:|--:|")
+    for r in analyse(traces, truth, budget):
+        print(f"| {r['rule']} | {r['mean_iters']:.1f} | {r['gap_cm_mean']:.4f} / "
+              f"{r['gap_cm_max']:.4f} | {r['gap_deg_max']:.4f} | {r['gt_extra_cm_mean']:+.4f} |")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seq", required=True)
@@ -108,8 +129,18 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE")
     ap.add_argument("--out", type=Path, default=Path("bench_out/convergence"))
+    ap.add_argument("--from-traces", type=Path, default=None, metavar="RUN",
+                    help="analyse RUN/traces.npz of an earlier invocation instead of running")
     args = ap.parse_args()
     seq = load_sequence(args.seq)
+    if args.from_traces is not None:
+        import yaml
+
+        resolved = yaml.safe_load((args.from_traces / "config.yaml").read_text())
+        report(seq, resolved["method"], resolved["preset"],
+               load_traces(args.from_traces / "traces.npz"),
+               int(resolved["slam"]["budget"]["tracking_iters"]))
+        return
     method = get_method(args.method)
     if not hasattr(method, "config"):
         ap.error(f"--method {args.method}: needs a built-in-style method")
@@ -123,16 +154,7 @@ def main() -> None:
     np.savez_compressed(out / "traces.npz", **{
         f"{k}_{i}": getattr(t, k) for i, t in traces.items()
         for k in ("losses", "step_norms", "poses1_cw")})
-    truth = {i: invert_pose(np.asarray(seq.poses[i])) for i in traces}
-    budget = cfg.budget.tracking_iters
-    print(f"{seq.name}, {args.method}, preset {args.preset}, {len(traces)} tracked frames, "
-          f"budget {budget} iterations")
-    print("| rule | mean iterations | gap to full budget cm (mean / max) | max deg "
-          "| GT error change cm (mean) |")
-    print("|:--|--:|--:|--:|--:|")
-    for r in analyse(traces, truth, budget):
-        print(f"| {r['rule']} | {r['mean_iters']:.1f} | {r['gap_cm_mean']:.4f} / "
-              f"{r['gap_cm_max']:.4f} | {r['gap_deg_max']:.4f} | {r['gt_extra_cm_mean']:+.4f} |")
+    report(seq, args.method, args.preset, traces, cfg.budget.tracking_iters)
 
 
 if __name__ == "__main__":
