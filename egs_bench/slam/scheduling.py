@@ -73,8 +73,8 @@ class ConcurrentMapping:
         return bool(self.queue)
 
     def submit(self, round_: Any) -> None:
-        """Queue a keyframe's round; earlier unfinished rounds are finished first (the caller
-        inserts new Gaussians before calling)."""
+        """Queue a keyframe's round (begun after the keyframe's Gaussians were inserted, with
+        :meth:`finish_queued` called before that insertion)."""
         self.queue.append(round_)
 
     def finish_queued(self) -> None:
