@@ -19,6 +19,18 @@ def _topic(option: str, what: str) -> Any:
     return typer.Option(None, option, help=f"{what}: topic name (default: the preset's).")
 
 
+# Options the two import commands share, declared once.
+_MAX_DEPTH_DT_MS = typer.Option(15.0, "--max-depth-dt-ms", min=0.0,
+                                help="Largest time between an exposure end and the depth map "
+                                     "used for it.")
+_FIRST_FRAME = typer.Option(0, "--first-frame", min=0, help="Skip this many usable frames.")
+_MAX_FRAMES = typer.Option(None, "--max-frames", min=1, help="Import at most this many frames.")
+_NAME = typer.Option(None, "--name", help="Sequence name (default: folder name).")
+_OVERWRITE_SEQUENCE = typer.Option(False, "--overwrite",
+                                   help="Replace an existing sequence folder.")
+_PROGRESS = typer.Option(True, "--progress/--no-progress", help="Show a progress bar.")
+
+
 @app.command("import-recording")
 def import_recording_cmd(
     out: Path = typer.Option(..., "--out", "-o", help="Sequence folder to write (must not exist)."),
@@ -58,23 +70,18 @@ def import_recording_cmd(
                                                 "mid)."),
     exposure_us: int | None = typer.Option(None, "--exposure-us", min=1,
                                            help="Constant exposure time when the source has none."),
-    max_depth_dt_ms: float = typer.Option(15.0, "--max-depth-dt-ms", min=0.0,
-                                          help="Largest time between an exposure end and the "
-                                               "depth map used for it."),
+    max_depth_dt_ms: float = _MAX_DEPTH_DT_MS,
     max_gt_gap_ms: float = typer.Option(50.0, "--max-gt-gap-ms", min=0.0,
                                         help="Largest gap between the mocap poses around an "
                                              "exposure end (mocap dropouts drop the frame)."),
-    first_frame: int = typer.Option(0, "--first-frame", min=0,
-                                    help="Skip this many usable frames."),
-    max_frames: int | None = typer.Option(None, "--max-frames", min=1,
-                                          help="Import at most this many frames."),
-    name: str | None = typer.Option(None, "--name", help="Sequence name (default: folder name)."),
+    first_frame: int = _FIRST_FRAME,
+    max_frames: int | None = _MAX_FRAMES,
+    name: str | None = _NAME,
     sensor: list[str] = typer.Option([], "--sensor",
                                      help="STREAM=NAME for meta.yaml (events, frames, depth, "
                                           "groundtruth), e.g. depth='Azure Kinect'; repeatable."),
-    overwrite: bool = typer.Option(False, "--overwrite",
-                                   help="Replace an existing sequence folder."),
-    progress: bool = typer.Option(True, "--progress/--no-progress", help="Show a progress bar."),
+    overwrite: bool = _OVERWRITE_SEQUENCE,
+    progress: bool = _PROGRESS,
 ) -> None:
     """Import a real event + RGB-D + mocap recording as a sequence folder (ATE-only scoring)."""
     from egs_bench.recordings import RecordingSpec, import_recording
@@ -154,22 +161,17 @@ def import_enslam_cmd(
     frames: EnslamFrames = typer.Option("rgbd", "--frames",
                                         help="rgbd (RealSense colour, EN-SLAM's input) or "
                                              "davis (DAVIS346 APS frames)."),
-    max_depth_dt_ms: float = typer.Option(15.0, "--max-depth-dt-ms", min=0.0,
-                                          help="Largest time between an exposure end and the "
-                                               "depth map used for it."),
+    max_depth_dt_ms: float = _MAX_DEPTH_DT_MS,
     max_gt_gap_ms: float = typer.Option(50.0, "--max-gt-gap-ms", min=0.0,
                                         help="Largest gap between the poses around an "
                                              "exposure end."),
-    first_frame: int = typer.Option(0, "--first-frame", min=0,
-                                    help="Skip this many usable frames."),
-    max_frames: int | None = typer.Option(None, "--max-frames", min=1,
-                                          help="Import at most this many frames."),
-    name: str | None = typer.Option(None, "--name", help="Sequence name (default: folder name)."),
+    first_frame: int = _FIRST_FRAME,
+    max_frames: int | None = _MAX_FRAMES,
+    name: str | None = _NAME,
     sensor: list[str] = typer.Option([], "--sensor", help="STREAM=NAME for meta.yaml; "
                                      "repeatable."),
-    overwrite: bool = typer.Option(False, "--overwrite",
-                                   help="Replace an existing sequence folder."),
-    progress: bool = typer.Option(True, "--progress/--no-progress"),
+    overwrite: bool = _OVERWRITE_SEQUENCE,
+    progress: bool = _PROGRESS,
 ) -> None:
     """Import an EN-SLAM DEV-Reals sequence (events + RGB-D + poses) as a sequence folder."""
     from egs_bench.recordings.enslam import import_enslam
