@@ -35,8 +35,8 @@ class DemoResult:
 
 def run_demo(out: str | Path, *, sequence: str = DEMO_SEQUENCE,
              methods: tuple[str, ...] = DEMO_METHODS, preset: str = "cpu",
-             options: dict | None = None, say: Callable[[str], None] = print,
-             progress: bool = True) -> DemoResult:
+             options: dict | None = None, seed: int = 0,
+             say: Callable[[str], None] = print, progress: bool = True) -> DemoResult:
     """Generate (or reuse) ``sequence``, run ``methods`` on it, evaluate, plot and rank them.
 
     Args:
@@ -46,11 +46,18 @@ def run_demo(out: str | Path, *, sequence: str = DEMO_SEQUENCE,
         preset: SLAM configuration preset (compute budget).
         options: configuration overrides of built-in methods (default :data:`DEMO_OPTIONS`
             for the default sequence, none otherwise).
+        seed: the SLAM runs' seed (insertion subsampling, random mapping views); the sequence
+            is the same for every seed.
         say: where progress messages go.
         progress: show progress bars.
+
+    Raises:
+        OutputError: a finished run in ``out`` was made with another seed (it is kept; give
+            another ``out``).
     """
     from egs_bench.datasets.inspect import save_frame_panel, sequence_summary
     from egs_bench.datasets.registry import load_sequence
+    from egs_bench.errors import OutputError
     from egs_bench.eval.evaluate import evaluate_run
     from egs_bench.eval.figures import detail_crops, qualitative_figure
     from egs_bench.eval.leaderboard import leaderboard
@@ -75,19 +82,23 @@ def run_demo(out: str | Path, *, sequence: str = DEMO_SEQUENCE,
     result = DemoResult(sequence=seq.path, panel=panel)
 
     settings = "".join(f", {k}={v}" for k, v in options.items())
-    say(f"[2/4] running {', '.join(methods)} (preset {preset}{settings})")
+    say(f"[2/4] running {', '.join(methods)} (preset {preset}, seed {seed}{settings})")
     for name in methods:
         method = get_method(name)
         run_dir = out / "runs" / seq.name / method.name
         finished = RunFolder.is_run_folder(run_dir) and \
             RunFolder.open(run_dir).read_status().state == "done"
         if finished:
+            run_seed = RunFolder.open(run_dir).read_config().get("seed")
+            if run_seed != seed:
+                raise OutputError(run_dir, f"is a finished demo run with seed {run_seed}, not "
+                                           f"{seed}; give another --out to keep both")
             say(f"      {name}: reusing finished run {run_dir}")
         else:
             extra: dict = {"overwrite": True} if supports_overwrite(method) else {}
             if options and isinstance(method, ConfiguredSlamMethod):
                 method = method.with_options(options)
-            method.run(seq, run_dir, preset=preset, device="cpu", seed=0, max_frames=None,
+            method.run(seq, run_dir, preset=preset, device="cpu", seed=seed, max_frames=None,
                        progress=progress, **extra)
         result.runs[name] = run_dir
 
