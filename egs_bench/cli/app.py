@@ -15,6 +15,7 @@ from typer._click import Context
 from typer._click.exceptions import BadParameter, NoArgsIsHelpError, UsageError
 from typer.core import TyperGroup
 
+from egs_bench import installed_version
 from egs_bench.errors import ConfigError
 
 
@@ -95,15 +96,27 @@ app = typer.Typer(
     help="Event + RGB-D Gaussian Splatting SLAM toolkit: make data, run methods, score them.",
     no_args_is_help=True,
     pretty_exceptions_enable=False,
-    add_completion=False,
+    # --install-completion / --show-completion [SHELL]: typer's completion scripts call the
+    # console script back with _EGS_BENCH_COMPLETE set, which click answers before any command
+    add_completion=True,
     context_settings={"help_option_names": ["-h", "--help"]},
 )
+
+
+def _print_version(value: bool) -> None:
+    if value:
+        out.print(f"egs-bench {installed_version()}")
+        raise typer.Exit()
 
 
 @app.callback()
 def _global(
     debug: bool = typer.Option(
         False, "--debug", help="Show full Python tracebacks instead of one-line error messages."
+    ),
+    _version: bool = typer.Option(
+        False, "--version", callback=_print_version, is_eager=True,
+        help="Show the installed egs-bench version and exit."
     ),
 ) -> None:
     """Event + RGB-D Gaussian Splatting SLAM toolkit: make data, run methods, score them."""

@@ -57,7 +57,7 @@ from typing import Any
 import numpy as np
 import yaml
 
-from egs_bench import __version__
+from egs_bench import installed_version
 from egs_bench.errors import InputError, OutputError, interruption_in, interruption_reason
 from egs_bench.fileio import (
     FileLock,
@@ -322,7 +322,7 @@ class RunFolder:
                 },
                 "groundtruth": str(Path(groundtruth).resolve()) if groundtruth is not None
                 else None,
-                "egs_bench_version": __version__,
+                "egs_bench_version": installed_version(),
                 "code": code_revision(),
                 "created_utc": _now_utc(),
                 "artifacts": [],
