@@ -31,18 +31,18 @@ import numpy as np
 from tabulate import tabulate
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "datasets"))
-import replica_testscene as scene  # noqa: E402
+import replica_testscene as scene
 
-from egs_bench.color import linear_to_srgb  # noqa: E402
-from egs_bench.datasets.eventreplica import (  # noqa: E402
+from egs_bench.color import linear_to_srgb
+from egs_bench.datasets.eventreplica import (
     INTERPOLATORS,
     ReplicaSource,
     ResizeCrop,
     make_eventreplica,
 )
-from egs_bench.datasets.replica import export_replica_layout, read_replica  # noqa: E402
-from egs_bench.datasets.sequence import Sequence  # noqa: E402
-from egs_bench.geometry import Intrinsics, interpolate_pose  # noqa: E402
+from egs_bench.datasets.replica import export_replica_layout, read_replica
+from egs_bench.datasets.sequence import Sequence
+from egs_bench.geometry import Intrinsics, interpolate_pose
 
 REPLICA = Intrinsics(600.0, 600.0, 600.0, 340.0, 1200, 680)  # egs-bench convention
 

@@ -22,13 +22,13 @@ from pathlib import Path
 
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")  # see bench_render.py
 
-import torch  # noqa: E402
+import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from egs_bench.render.numba_backend import composite_tiles  # noqa: E402
-from egs_bench.render.numba_projection import project_gaussians_fused  # noqa: E402
-from egs_bench.render.projection import project_gaussians  # noqa: E402
+from egs_bench.render.numba_backend import composite_tiles
+from egs_bench.render.numba_projection import project_gaussians_fused
+from egs_bench.render.projection import project_gaussians
 
 WIDTH, HEIGHT = 224, 128
 

@@ -35,7 +35,7 @@ from pathlib import Path
 # Must be set before the OpenMP runtimes load. Override by exporting OMP_WAIT_POLICY.
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
-import torch  # noqa: E402
+import torch
 
 ROOT = Path(__file__).resolve().parents[1]
 PROTO_DIR = ROOT.parent / "shared" / "reference" / "rasterizer_proto"

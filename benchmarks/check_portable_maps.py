@@ -85,7 +85,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         exported, _ = read_ply(export_display_ply(src, Path(tmp) / "display.ply"))
     inria = exported.colors.clamp_min(0.0)  # 3DGS: SH_C0 f_dc + 0.5, clamped at 0
-    K = torch.tensor(app.camera.K[None], dtype=torch.float32)  # noqa: N806
+    K = torch.tensor(app.camera.K[None], dtype=torch.float32)
 
     def shown(colors: torch.Tensor, view: torch.Tensor) -> tuple[np.ndarray, float]:
         with torch.no_grad():

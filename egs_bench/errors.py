@@ -66,7 +66,7 @@ class UnwritableOutputError(OutputError):
     exit_code = EXIT_DATA
 
 
-class Interrupted(KeyboardInterrupt):  # noqa: N818 (a KeyboardInterrupt, named like one)
+class Interrupted(KeyboardInterrupt):  # a KeyboardInterrupt, named like one
     """SIGINT or SIGTERM arrived. Subclasses ``KeyboardInterrupt`` so that code which cleans up
     after Ctrl-C (temporary folders, run folders marked interrupted) does the same after a
     cluster's SIGTERM."""

@@ -113,7 +113,7 @@ def image_header(path: str | Path) -> tuple[int, int, str]:
             return img.size[0], img.size[1], img.mode
     except FileNotFoundError:
         raise InputError(path, "image not found") from None
-    except Exception as exc:  # noqa: BLE001 (Pillow raises many kinds for bad files)
+    except Exception as exc:  # Pillow raises many kinds for bad files
         raise InputError(path, f"unreadable image ({exc})") from None
 
 

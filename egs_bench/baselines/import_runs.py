@@ -532,7 +532,7 @@ def _render_ply(ply: Path, poses_wc: np.ndarray, intrinsics) -> list[np.ndarray]
     from egs_bench.render.rasterize import rasterize
 
     gmap = GaussianMap.load_ply(ply)
-    K = torch.tensor(intrinsics.K[None], dtype=gmap.dtype)  # noqa: N806
+    K = torch.tensor(intrinsics.K[None], dtype=gmap.dtype)
     out = []
     with torch.no_grad():
         for pose in poses_wc:

@@ -81,7 +81,7 @@ def main(argv: list[str] | None = None) -> int:
             return _internal(err, exc)
         _error_line(err, "error:", f"{exc.filename}: {exc.strerror or exc}")
         return EXIT_DATA
-    except Exception as exc:  # noqa: BLE001 (last-resort one-line report; --debug shows all)
+    except Exception as exc:  # last-resort one-line report; --debug shows all
         if (interrupted := interruption_in(exc)) is not None:  # e.g. raised inside numba
             return _report_interruption(err, interrupted)
         if OPTIONS.debug:

@@ -74,7 +74,7 @@ def _roles(first: Path, second: Path, est_first: bool, command: str) -> tuple[Pa
     return gt, est
 
 
-def _print_stats(title: str, unit: str, r) -> None:  # noqa: ANN001 (AteResult | RpeResult)
+def _print_stats(title: str, unit: str, r) -> None:  # AteResult | RpeResult
     """One-row table of the error statistics of an ATE or RPE result, and the Sim(3) scale."""
     table = Table(title=title)
     for col in ("rmse", "mean", "median", "std", "min", "max"):
@@ -140,11 +140,11 @@ def _evo_alignment_args(args: list[str]) -> list[str]:
 class _EvoSpellings(TyperCommand):
     """A command that also reads evo's alignment flags (:func:`_evo_alignment_args`)."""
 
-    def parse_args(self, ctx, args: list[str]) -> list[str]:  # noqa: ANN001 (click.Context)
+    def parse_args(self, ctx, args: list[str]) -> list[str]:  # click.Context
         return super().parse_args(ctx, _evo_alignment_args(args))
 
 
-def _save_option(metric: str):  # noqa: ANN202 (a typer OptionInfo)
+def _save_option(metric: str):  # a typer OptionInfo
     return typer.Option(None, "--save-results", "--save_results",
                         help=f"Also write the {metric} statistics, settings and per-pose errors "
                              "to this JSON file (evo's option; JSON, not evo's .zip).")

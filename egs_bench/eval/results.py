@@ -297,7 +297,7 @@ def read_run_result(path: Path, root: Path, protocol: str = DEFAULT_PROTOCOL,
         done, total = _coverage(data, run.metrics_path)
     except EgsBenchError as exc:
         return RunResult(**base, status="broken", reason=str(exc))
-    except Exception as exc:  # noqa: BLE001 (a bad folder must become a footnote, not an abort)
+    except Exception as exc:  # a bad folder must become a footnote, not an abort
         reraise_interruption(exc)
         return RunResult(**base, status="broken",
                          reason=f"{path}: evaluation failed ({type(exc).__name__}: {exc})")

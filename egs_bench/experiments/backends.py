@@ -273,7 +273,7 @@ def run_slurm(runs: Sequence[RunSpec], options: SlurmOptions, *, cluster: str = 
         try:
             code = job.result()
             outcomes[spec.run_id] = _outcome(int(code), Path(spec.run_dir) / "worker.log")
-        except Exception as exc:  # noqa: BLE001 (submitit raises its own types for a dead job)
+        except Exception as exc:  # submitit raises its own types for a dead job
             reason = f"{type(exc).__name__}: {exc}".splitlines()[0][:200]
             if "timed out" in reason.lower() or "timeout" in reason.lower():
                 mark_timeout(spec, options.timeout_min)

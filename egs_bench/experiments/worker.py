@@ -301,7 +301,7 @@ def _run_method(spec: RunSpec, run_dir: Path, record: dict[str, Any]) -> None:
         record["state"] = state if state in ("done", "failed", "tracking_lost") else "failed"
         if record["state"] != "done":
             record["reason"] = _status_reason(run_dir) or "the method did not mark the run done"
-    except Exception as exc:  # noqa: BLE001 (any failure of one run is recorded, not raised)
+    except Exception as exc:  # any failure of one run is recorded, not raised
         reraise_interruption(exc)
         record.update(state=run_state(run_dir) if run_state(run_dir) == "tracking_lost"
                       else "failed", reason=f"{type(exc).__name__}: {exc}".splitlines()[0])
@@ -318,7 +318,7 @@ def _evaluate(spec: RunSpec, run_dir: Path, record: dict[str, Any]) -> None:
     try:
         evaluate_run(run_dir, spec.protocol, write=True)
         record["evaluated"] = spec.protocol
-    except Exception as exc:  # noqa: BLE001
+    except Exception as exc:
         reraise_interruption(exc)
         error = f"{type(exc).__name__}: {exc}".splitlines()[0]
         record.update(state="failed", evaluation_error=error, reason=f"evaluation: {error}")

@@ -71,9 +71,9 @@ class RecordingCalib:
     depth_camera: CameraModel | None = None
     depth_scale: float | None = None
     frame_camera: CameraModel | None = None
-    T_event_depth: np.ndarray = field(default_factory=lambda: np.eye(4))  # noqa: N815
-    T_event_frame: np.ndarray = field(default_factory=lambda: np.eye(4))  # noqa: N815
-    T_body_event: np.ndarray = field(default_factory=lambda: np.eye(4))  # noqa: N815
+    T_event_depth: np.ndarray = field(default_factory=lambda: np.eye(4))
+    T_event_frame: np.ndarray = field(default_factory=lambda: np.eye(4))
+    T_body_event: np.ndarray = field(default_factory=lambda: np.eye(4))
     time_offsets_us: dict[str, int] = field(
         default_factory=lambda: {"depth": 0, "frames": 0, "mocap": 0})
     path: Path | None = None
@@ -188,7 +188,7 @@ def load_calib(path: str | Path) -> RecordingCalib:
     offsets = _offsets(path, raw.get("time_offsets_us"), with_frames=frame is not None)
     if raw.get("T_event_frame") is not None and frame is None:
         raise InputError(path, "T_event_frame given without frame_camera")
-    T_event_depth = _required_transform(  # noqa: N806
+    T_event_depth = _required_transform(
         path, raw, "T_event_depth", depth is not None and not on_event,
         "depth camera -> event camera")
     if on_event and not np.allclose(T_event_depth, np.eye(4)):

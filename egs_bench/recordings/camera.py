@@ -62,7 +62,7 @@ class CameraModel:
 
     # ------------------------------------------------------------------ basics
     @property
-    def K(self) -> np.ndarray:  # noqa: N802 (the conventional name)
+    def K(self) -> np.ndarray:  # the conventional name
         """3x3 calibration matrix in OpenCV's convention, float64."""
         return np.array([[self.fx, 0.0, self.cx], [0.0, self.fy, self.cy], [0.0, 0.0, 1.0]])
 

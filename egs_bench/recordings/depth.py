@@ -24,7 +24,7 @@ from egs_bench.recordings.camera import CameraModel
 MIN_DEPTH_M = 1e-3
 
 
-def reproject_depth(depth: np.ndarray, rays: np.ndarray, T_dst_src: np.ndarray,  # noqa: N803
+def reproject_depth(depth: np.ndarray, rays: np.ndarray, T_dst_src: np.ndarray,
                     dst: Intrinsics) -> np.ndarray:
     """Reproject a depth map into another camera with a z-buffer; fills nothing.
 
@@ -68,7 +68,7 @@ def reproject_depth(depth: np.ndarray, rays: np.ndarray, T_dst_src: np.ndarray, 
 
 
 def warp_to_depth_camera(image: np.ndarray, src: CameraModel, depth_dst: np.ndarray,
-                         dst: Intrinsics, T_src_dst: np.ndarray  # noqa: N803
+                         dst: Intrinsics, T_src_dst: np.ndarray
                          ) -> tuple[np.ndarray, np.ndarray]:
     """Resample an image of camera ``src`` into camera ``dst`` using ``dst``'s depth.
 

@@ -494,7 +494,7 @@ def write_sequence(inp: _Inputs, spec: RecordingSpec, out: Path, *, overwrite: b
     pinhole = cam.pinhole()
     lut = cam.event_lookup()
     depth_rays = inp.depth_camera.pixel_rays()
-    T_frame_event = invert_pose(calib.T_event_frame)  # noqa: N806
+    T_frame_event = invert_pose(calib.T_event_frame)
     frame_cam = calib.frame_camera
     on_frame_sensor = frame_cam is None
     name = spec.name or out.name

@@ -227,7 +227,7 @@ class BagFile:
         ``distortion_model``; OpenCV pixel convention)."""
         topic = self.resolve_topic(topic, CAMERA_INFO_TYPES, "camera info")
         for _, msg in self._messages(topic):
-            K = np.asarray(msg.K, np.float64)  # noqa: N806
+            K = np.asarray(msg.K, np.float64)
             try:
                 return CameraModel(int(msg.width), int(msg.height), K[0], K[4], K[2], K[5],
                                    model=str(msg.distortion_model),
@@ -250,7 +250,7 @@ class _GuardedReader:
         try:
             self.reader = AnyReader([self.path])
             self.reader.open()
-        except Exception as exc:  # noqa: BLE001 (rosbags raises several kinds on bad files)
+        except Exception as exc:  # rosbags raises several kinds on bad files
             raise InputError(self.path, f"cannot read the ROS bag, truncated or not a ROS1 bag "
                                         f"({exc})") from None
         return _GuardedIter(self.path, self.reader)
@@ -273,7 +273,7 @@ class _GuardedIter:
             yield from self._reader.messages(*args, **kwargs)
         except InputError:
             raise
-        except Exception as exc:  # noqa: BLE001 (a damaged chunk surfaces mid-iteration)
+        except Exception as exc:  # a damaged chunk surfaces mid-iteration
             raise InputError(self._path, f"ROS bag is truncated or corrupt ({exc})") from None
 
 

@@ -28,7 +28,7 @@ def synthetic_rgbd(width: int = 224, height: int = 128) -> tuple[np.ndarray, np.
     best = np.full((height, width), np.inf)
     rgb = np.zeros((height, width, 3))
 
-    def plane(axis: int, value: float, colour_fn) -> None:  # noqa: ANN001
+    def plane(axis: int, value: float, colour_fn) -> None:
         with np.errstate(divide="ignore", invalid="ignore"):
             t = value / d[..., axis]
         hit = (t > 0) & (t < best)
@@ -36,7 +36,7 @@ def synthetic_rgbd(width: int = 224, height: int = 128) -> tuple[np.ndarray, np.
         best[hit] = t[hit]
         rgb[hit] = colour_fn(p[hit])
 
-    def checker(p: np.ndarray, a: int, b: int, c0, c1) -> np.ndarray:  # noqa: ANN001
+    def checker(p: np.ndarray, a: int, b: int, c0, c1) -> np.ndarray:
         k = (np.floor(p[:, a] * 2) + np.floor(p[:, b] * 2)) % 2
         return np.where(k[:, None] > 0, np.array(c0), np.array(c1))
 
@@ -72,11 +72,11 @@ def render_demo(out_png: str | Path, width: int = 224, height: int = 128, downsa
     gmap.add_from_depth(rgb, depth, intr, np.eye(4), downsample=downsample, point_size=0.5,
                         opacity=0.9, generator=torch.Generator().manual_seed(seed))
     a = np.radians(8.0)
-    T_wc = np.eye(4)  # noqa: N806
+    T_wc = np.eye(4)
     T_wc[:3, :3] = [[np.cos(a), 0, np.sin(a)], [0, 1, 0], [-np.sin(a), 0, np.cos(a)]]
     T_wc[0, 3] = 0.3
     viewmats = torch.tensor(np.stack([np.eye(4), np.linalg.inv(T_wc)]), dtype=torch.float32)
-    Ks = torch.tensor(intr.K, dtype=torch.float32).expand(2, 3, 3)  # noqa: N806
+    Ks = torch.tensor(intr.K, dtype=torch.float32).expand(2, 3, 3)
     with torch.no_grad():
         out = rasterize(gmap.means, gmap.quats, gmap.scales, gmap.opacities, gmap.colors,
                         viewmats, Ks, width, height)
@@ -112,7 +112,7 @@ def frame_map(gmap: GaussianMap, width: int, height: int) -> tuple[np.ndarray, I
 def render_map_png(
     gmap: GaussianMap,
     out_png: str | Path,
-    T_wc: np.ndarray | None = None,  # noqa: N803
+    T_wc: np.ndarray | None = None,
     intrinsics: Intrinsics | None = None,
     width: int = 640,
     height: int = 480,
@@ -126,7 +126,7 @@ def render_map_png(
     pose = pose if T_wc is None else np.asarray(T_wc, dtype=np.float64)
     intr = intr if intrinsics is None else intrinsics
     view = torch.tensor(np.linalg.inv(pose)[None], dtype=gmap.dtype)
-    K = torch.tensor(intr.K[None], dtype=gmap.dtype)  # noqa: N806
+    K = torch.tensor(intr.K[None], dtype=gmap.dtype)
     with torch.no_grad():
         out = rasterize(gmap.means, gmap.quats, gmap.scales, gmap.opacities, gmap.colors, view,
                         K, intr.width, intr.height, backend=backend)  # type: ignore[arg-type]

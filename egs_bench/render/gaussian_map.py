@@ -106,7 +106,7 @@ class GaussianMap:
     def render(
         self,
         viewmats: torch.Tensor,
-        Ks: torch.Tensor,  # noqa: N803
+        Ks: torch.Tensor,
         width: int,
         height: int,
         **kwargs: object,
@@ -164,7 +164,7 @@ class GaussianMap:
         rgb: np.ndarray | torch.Tensor,
         depth: np.ndarray | torch.Tensor,
         intrinsics: Intrinsics,
-        T_wc: np.ndarray,  # noqa: N803
+        T_wc: np.ndarray,
         downsample: int = 64,
         point_size: float = 0.05,
         opacity: float = 0.5,
@@ -269,7 +269,7 @@ class FrozenGaussians:
     def device(self) -> torch.device:
         return self.means.device
 
-    def render(self, viewmats: torch.Tensor, Ks: torch.Tensor, width: int,  # noqa: N803
+    def render(self, viewmats: torch.Tensor, Ks: torch.Tensor, width: int,
                height: int, **kwargs: object) -> RasterResult:
         """``rasterize`` these Gaussians into cameras ``viewmats`` [C,4,4] with ``Ks``."""
         from egs_bench.render.rasterize import rasterize

@@ -35,7 +35,7 @@ def _import_gsplat():  # -> module
     return gsplat
 
 
-def touched_visibility(meta: dict, C: int, N: int, width: int, height: int) -> torch.Tensor:  # noqa: N803
+def touched_visibility(meta: dict, C: int, N: int, width: int, height: int) -> torch.Tensor:
     """[C, N] bool: contributed to some pixel while the transmittance after it was > 0.5."""
     gsplat = _import_gsplat()
     offsets = meta["isect_offsets"]
@@ -65,7 +65,7 @@ def rasterize_gsplat(
     opacities: torch.Tensor,
     colors: torch.Tensor,
     viewmats: torch.Tensor,
-    Ks: torch.Tensor,  # noqa: N803
+    Ks: torch.Tensor,
     width: int,
     height: int,
     near_plane: float,

@@ -31,7 +31,7 @@ SPAN_PAD = 1e-3  # px: widens the exact row span so rounding never drops a bound
 
 
 @njit(inline="always")
-def _box(mx, my, rx, ry, W, H):  # noqa: N803
+def _box(mx, my, rx, ry, W, H):
     """Pixel index box whose centres lie within ``(mx +- rx, my +- ry)``, clipped to the
     image; ok=False when empty or culled (rx < 0)."""
     if not (rx > 0.0):
@@ -63,7 +63,7 @@ def _row_span(dy, ca, cb, cc, m2, mx, u0, u1):
 
 
 @njit(cache=True, parallel=True)
-def bin_tiles(mean2d, ext, order, W, H):  # noqa: N803
+def bin_tiles(mean2d, ext, order, W, H):
     """Tile lists for C cameras.
 
     Args: mean2d [C,N,2], ext [C,N,2] (negative = culled), order [C,N] int32 (depth order).
@@ -103,7 +103,7 @@ def bin_tiles(mean2d, ext, order, W, H):  # noqa: N803
 
 
 @njit(cache=True, parallel=True, fastmath=True)
-def raster_fwd(mean2d, conic, depth, opac, m2s, colors, ext, isect, offsets, W, H,  # noqa: N803
+def raster_fwd(mean2d, conic, depth, opac, m2s, colors, ext, isect, offsets, W, H,
                out_rgb, out_depth, out_T, out_last, touch, consts, centre):
     """Forward compositing. Writes rgb [C,H,W,3], depth [C,H,W] (data dtype), final
     transmittance [C,H,W] (float64, for the backward), index into ``isect`` of each pixel's
@@ -208,7 +208,7 @@ def raster_fwd(mean2d, conic, depth, opac, m2s, colors, ext, isect, offsets, W, 
 
 
 @njit(cache=True, parallel=True, fastmath=True)
-def raster_bwd(mean2d, conic, depth, opac, m2s, colors, ext, isect, offsets, W, H,  # noqa: N803
+def raster_bwd(mean2d, conic, depth, opac, m2s, colors, ext, isect, offsets, W, H,
                out_T, out_last, g_rgb, g_depth, g_alpha, rows, consts, centre):
     """Backward of :func:`raster_fwd`: fills ``rows[j]`` (one per intersection) with
     dL/d(mx, my, a, b, c, r, g, b, opacity, z) of that Gaussian restricted to that tile."""
@@ -338,7 +338,7 @@ def raster_bwd(mean2d, conic, depth, opac, m2s, colors, ext, isect, offsets, W, 
 
 
 @njit(cache=True, parallel=True)
-def reduce_rows(isect, offsets, rows, T, out):  # noqa: N803
+def reduce_rows(isect, offsets, rows, T, out):
     """``out[k, g] += rows[j]`` for every intersection j of camera k (parallel over cameras,
     sequential and therefore deterministic within one)."""
     C = out.shape[0]
@@ -351,7 +351,7 @@ def reduce_rows(isect, offsets, rows, T, out):  # noqa: N803
 
 
 @njit(cache=True, parallel=True)
-def reduce_touch(isect, offsets, touch, T, out):  # noqa: N803
+def reduce_touch(isect, offsets, touch, T, out):
     """``out[k, g] = True`` where any intersection of Gaussian g in camera k touched a pixel."""
     C = out.shape[0]
     for k in prange(C):

@@ -319,7 +319,7 @@ def _kernel_arrays(*tensors: torch.Tensor) -> tuple[np.ndarray, ...]:
 class _ProjectFused(torch.autograd.Function):
     @staticmethod
     def forward(ctx: Any, means: torch.Tensor, quats: torch.Tensor, scales: torch.Tensor,
-                opacities: torch.Tensor, viewmats: torch.Tensor, Ks: torch.Tensor,  # noqa: N803
+                opacities: torch.Tensor, viewmats: torch.Tensor, Ks: torch.Tensor,
                 width: int, height: int, near: float, far: float
                 ) -> tuple[torch.Tensor, ...]:
         arrs = _kernel_arrays(means, quats, scales, opacities, viewmats, Ks)
@@ -351,7 +351,7 @@ class _ProjectFused(torch.autograd.Function):
                  g_depths: torch.Tensor | None, *_non_differentiable: Any
                  ) -> tuple[torch.Tensor | None, ...]:
         width, height, near, far = ctx.frame
-        means, quats, scales, viewmats, Ks = _kernel_arrays(*ctx.saved_tensors)  # noqa: N806
+        means, quats, scales, viewmats, Ks = _kernel_arrays(*ctx.saved_tensors)
         C, N = viewmats.shape[0], means.shape[0]
         dt = means.dtype
 
@@ -377,7 +377,7 @@ class _ProjectFused(torch.autograd.Function):
 
 def project_gaussians_fused(means: torch.Tensor, quats: torch.Tensor, scales: torch.Tensor,
                             opacities: torch.Tensor, viewmats: torch.Tensor,
-                            Ks: torch.Tensor,  # noqa: N803 (gsplat's name)
+                            Ks: torch.Tensor,  # gsplat's name
                             width: int, height: int, near_plane: float = RC.NEAR_PLANE,
                             far_plane: float = RC.FAR_PLANE) -> Projected:
     """:func:`~egs_bench.render.projection.project_gaussians` (same arguments and outputs) on

@@ -68,7 +68,7 @@ def project_gaussians(
     scales: torch.Tensor,
     opacities: torch.Tensor,
     viewmats: torch.Tensor,
-    Ks: torch.Tensor,  # noqa: N803 (gsplat's name)
+    Ks: torch.Tensor,  # gsplat's name
     width: int,
     height: int,
     near_plane: float = RC.NEAR_PLANE,

@@ -54,7 +54,7 @@ def _check_inputs(
     opacities: torch.Tensor,
     colors: torch.Tensor,
     viewmats: torch.Tensor,
-    Ks: torch.Tensor,  # noqa: N803
+    Ks: torch.Tensor,
     width: int,
     height: int,
 ) -> None:
@@ -104,7 +104,7 @@ def rasterize(
     opacities: torch.Tensor,
     colors: torch.Tensor,
     viewmats: torch.Tensor,
-    Ks: torch.Tensor,  # noqa: N803 (gsplat's name)
+    Ks: torch.Tensor,  # gsplat's name
     width: int,
     height: int,
     near_plane: float = RC.NEAR_PLANE,

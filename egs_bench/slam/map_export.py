@@ -258,7 +258,7 @@ def render_map_view(src: MapSource, *, frame: int | None = None, pose: np.ndarra
     gmap = src.gmap
     view = torch.tensor(np.linalg.inv(np.asarray(pose, dtype=np.float64))[None],
                         dtype=gmap.dtype)
-    K = torch.tensor(camera.K[None], dtype=gmap.dtype)  # noqa: N806
+    K = torch.tensor(camera.K[None], dtype=gmap.dtype)
     kwargs = {"near_plane": app.near_plane} if app is not None else {}
     hdr = gmap.render(view, K, camera.width, camera.height, backend=backend, **kwargs).rgb[0]
     if app is not None:

@@ -165,7 +165,7 @@ def _write_partial_trajectory(run: RunFolder, system: SlamSystem, seq: Sequence)
         run.write_trajectory(np.asarray(seq.timestamps_s[:len(states)]), poses_wc)
         run.log(f"wrote the trajectory of the {len(states)} frame(s) processed before the run "
                 "stopped")
-    except Exception as exc:  # noqa: BLE001 (never hide the original error)
+    except Exception as exc:  # never hide the original error
         run.log(f"could not write the partial trajectory: {exc}")
 
 

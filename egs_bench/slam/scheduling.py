@@ -108,7 +108,7 @@ class ConcurrentMapping:
                     self._advance(self.per_frame)
             else:
                 self._advance(self.per_frame)
-        except BaseException as exc:  # noqa: BLE001 (re-raised in the frame's thread)
+        except BaseException as exc:  # re-raised in the frame's thread
             self._error = exc
 
     def _advance(self, budget: int) -> None:

@@ -26,8 +26,8 @@ from rig import (
 )
 from typer.testing import CliRunner
 
-import egs_bench.cli.eval_cmds  # noqa: F401  (registers the commands)
-import egs_bench.cli.recording_cmds  # noqa: F401
+import egs_bench.cli.eval_cmds  # registers the commands
+import egs_bench.cli.recording_cmds
 import egs_bench.cli.slam_cmds  # noqa: F401
 from egs_bench.cli import main
 from egs_bench.cli.app import app

@@ -28,7 +28,7 @@ def guide_namespace(tmp_path: Path, monkeypatch) -> dict:
     namespace: dict = {"__name__": "guide"}
     try:
         for block in guide_code():
-            exec(compile(block, str(GUIDE), "exec"), namespace)  # noqa: S102 (the guide's code)
+            exec(compile(block, str(GUIDE), "exec"), namespace)  # the guide's code
         yield namespace
     finally:
         registry._USER.pop("egs-depth-tv", None)
