@@ -17,6 +17,7 @@ from pathlib import Path
 
 DEMO_SEQUENCE = "demo-blur"
 DEMO_METHODS = ("egs", "monogs")
+DEMO_PRESET = "cpu"
 # Budget override of the demo: the sequence's own 224x128 instead of the cpu budget's half.
 DEMO_OPTIONS = {"budget.resolution_scale": 1.0}
 
@@ -34,7 +35,7 @@ class DemoResult:
 
 
 def run_demo(out: str | Path, *, sequence: str = DEMO_SEQUENCE,
-             methods: tuple[str, ...] = DEMO_METHODS, preset: str = "cpu",
+             methods: tuple[str, ...] = DEMO_METHODS, preset: str = DEMO_PRESET,
              options: dict | None = None, seed: int = 0,
              say: Callable[[str], None] = print, progress: bool = True) -> DemoResult:
     """Generate (or reuse) ``sequence``, run ``methods`` on it, evaluate, plot and rank them.
