@@ -112,3 +112,14 @@ def composite_tiles(
         width, height,
     )
     return rgb, depth, alpha, vis
+
+
+def kernels_ready() -> bool:
+    """Whether this process has the machine code of every CPU rasteriser kernel (compiled, or
+    loaded from the cache); until then the next render compiles, which takes minutes on a
+    cold cache (``egs-bench warm-up`` fills it)."""
+    from egs_bench.render import numba_projection as npj
+
+    kernels = (nk.bin_tiles, nk.raster_fwd, nk.raster_bwd, nk.reduce_rows, nk.reduce_touch,
+               npj.project_fwd, npj.project_bwd)
+    return all(kernel.signatures for kernel in kernels)

@@ -15,10 +15,12 @@ from egs_bench.datasets.sequence import Sequence
 from egs_bench.errors import ConfigError, InputError
 from egs_bench.fileio import write_text_atomic
 from egs_bench.geometry import invert_pose
+from egs_bench.render.numba_backend import kernels_ready
 from egs_bench.runs.folder import RunFolder
 from egs_bench.slam.appearance import APPEARANCE_FILE, MAP_FILE, Appearance, ldr8, write_appearance
 from egs_bench.slam.components import SlamComponents
 from egs_bench.slam.config import SlamConfig, resolve_device
+from egs_bench.slam.progress import PhaseProgress
 from egs_bench.slam.render_model import render_views
 from egs_bench.slam.system import FrameReport, SlamResult, SlamSystem
 
@@ -110,16 +112,12 @@ def run_slam(seq: Sequence, out: str | Path, *, method_name: str, config: SlamCo
             bar.set_postfix(loss=f"{rep.loss:.4f}", fps=f"{bar.n / max(elapsed, 1e-9):.2f}",
                             gaussians=len(system.gmap))
 
-        phase_start: dict[str, float] = {}
+        # Frame 0's map initialisation alone takes minutes on a CPU with the paper budget:
+        # show how far it is and when it ends (or that kernels compile) rather than a frozen bar.
+        phase_progress = PhaseProgress(kernels_ready if device == "cpu" else None)
 
         def on_phase(name: str, done: int, total: int) -> None:
-            # Frame 0's map initialisation alone takes minutes on a CPU with the paper budget:
-            # show how far it is and when it ends rather than a frozen bar.
-            now = time.perf_counter()
-            if done == 0:
-                phase_start[name] = now
-            eta = (now - phase_start[name]) / done * (total - done) if done else float("nan")
-            bar.set_postfix_str(f"{name} {done}/{total} iterations, ETA {eta:.0f} s")
+            bar.set_postfix_str(phase_progress.text(name, done, total))
 
         try:
             result = system.run(n, on_frame=on_frame, on_phase=on_phase if progress else None)
