@@ -58,14 +58,18 @@ def open_sequence(path: Path) -> Sequence:
     return Sequence.open(path, check_images=False)
 
 
-def _ground_truth(run: RunFolder, seq) -> tuple[Trajectory, str]:
+def _ground_truth(run: RunFolder, seq: Sequence | None) -> tuple[Trajectory, str]:
+    """The run's ground truth (its own file, else its sequence's) and the name to report."""
     if run.groundtruth_path is not None:
         return read_tum(run.groundtruth_path), str(run.groundtruth_path)
+    if seq is None:
+        raise ValueError(f"{run.path}: the run names neither a ground-truth file nor a "
+                         "sequence, and no sequence was given")
     return Trajectory(np.asarray(seq.timestamps_s, dtype=np.float64),
                       np.asarray(seq.poses, dtype=np.float64)), str(seq.path / "groundtruth.txt")
 
 
-def evaluate_ate(run: RunFolder, protocol: Protocol, seq=None) -> dict[str, Any]:
+def evaluate_ate(run: RunFolder, protocol: Protocol, seq: Sequence | None = None) -> dict[str, Any]:
     """ATE of the run under ``protocol``; returns the summary dict stored in ``metrics.json``."""
     return ate_summary(run, protocol, compute_run_ate(run, protocol, seq))
 
@@ -80,7 +84,7 @@ def ate_summary(run: RunFolder, protocol: Protocol, result: AteResult) -> dict[s
     return summary
 
 
-def evaluate_rpe(run: RunFolder, protocol: Protocol, seq=None) -> dict[str, Any]:
+def evaluate_rpe(run: RunFolder, protocol: Protocol, seq: Sequence | None = None) -> dict[str, Any]:
     """RPE of the run's whole estimated trajectory (per frame and per metre, translation and
     rotation; :func:`~egs_bench.eval.rpe.standard_rpe`): the summary stored in
     ``metrics.json``."""
@@ -93,7 +97,8 @@ def evaluate_rpe(run: RunFolder, protocol: Protocol, seq=None) -> dict[str, Any]
     return out
 
 
-def compute_run_ate(run: RunFolder, protocol: Protocol, seq=None) -> AteResult:
+def compute_run_ate(run: RunFolder, protocol: Protocol, seq: Sequence | None = None
+                    ) -> AteResult:
     """The :class:`~egs_bench.eval.ate.AteResult` of a run under ``protocol``.
 
     Raises:
@@ -192,7 +197,7 @@ def rendering_frames(num_frames: int, protocol: Protocol,
     return frames
 
 
-def processed_frames(run: RunFolder, protocol: Protocol, seq) -> int:
+def processed_frames(run: RunFolder, protocol: Protocol, seq: Sequence) -> int:
     """Number of leading sequence frames the run covers: those up to its last estimated pose.
 
     A run stopped early (e.g. ``--max-frames``) is scored on the frames it processed; the
@@ -208,8 +213,8 @@ def processed_frames(run: RunFolder, protocol: Protocol, seq) -> int:
     return int(np.searchsorted(stamps, last + protocol.ate_max_diff_s, side="right"))
 
 
-def evaluate_renders(run: RunFolder, protocol: Protocol, seq, num_frames: int | None = None,
-                     progress: bool = False) -> dict[str, Any]:
+def evaluate_renders(run: RunFolder, protocol: Protocol, seq: Sequence,
+                     num_frames: int | None = None, progress: bool = False) -> dict[str, Any]:
     """PSNR / SSIM / LPIPS of the run's renders under ``protocol`` (per frame and mean).
 
     Without LPIPS weights (see :func:`egs_bench.eval.lpips.find_weights`) PSNR and SSIM are
