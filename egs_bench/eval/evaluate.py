@@ -2,7 +2,8 @@
 
 ``metrics.json`` holds every number (summary and per frame), the full protocol, the run's identity
 and status, and the versions of the tools that computed it. It contains no time stamps or
-machine-specific paths, so evaluating the same run twice writes byte-identical files.
+machine-specific paths, so evaluating the same run twice writes byte-identical files. It is read
+back with :func:`egs_bench.eval.metrics_file.read_metrics`.
 """
 
 from __future__ import annotations
@@ -19,16 +20,14 @@ from egs_bench import __version__
 from egs_bench.errors import InputError
 from egs_bench.eval.ate import MIN_MATCHED_POSES, AteResult, compute_ate
 from egs_bench.eval.image_metrics import psnr, psnr_masked, ssim
+from egs_bench.eval.metrics_file import METRICS_SCHEMA_VERSION
 from egs_bench.eval.protocols import DEFAULT_PROTOCOL, Protocol, get_protocol
-from egs_bench.fileio import read_text, write_text_atomic
+from egs_bench.fileio import write_text_atomic
 from egs_bench.geometry import Trajectory, read_tum
 from egs_bench.runs.folder import RunFolder
 
 if TYPE_CHECKING:
     from egs_bench.datasets.sequence import Sequence
-
-METRICS_SCHEMA_VERSION = 1
-
 
 def _tool_versions() -> dict[str, str]:
     out = {"egs_bench": __version__}
@@ -387,17 +386,3 @@ def evaluate_run(run_dir: str | Path, protocol: str | Protocol = DEFAULT_PROTOCO
     if write:
         write_text_atomic(run.metrics_path, json.dumps(metrics, indent=1) + "\n")
     return metrics
-
-
-def read_metrics(run_dir: str | Path) -> dict[str, Any]:
-    """Read a run's ``metrics.json``; raises :class:`InputError` if missing or malformed."""
-    path = Path(run_dir) / "metrics.json"
-    if not path.is_file():
-        raise InputError(path, "not found (run `egs-bench eval` first)")
-    try:
-        data = json.loads(read_text(path))
-    except json.JSONDecodeError as exc:
-        raise InputError(path, f"not valid JSON ({exc})") from None
-    if not isinstance(data, dict) or "protocol" not in data or "ate" not in data:
-        raise InputError(path, "not an egs-bench metrics file (no 'protocol'/'ate')")
-    return data
