@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import shutil
 from pathlib import Path
 from typing import Any
 
@@ -12,6 +13,8 @@ from eval_fixtures import make_run
 from egs_bench.errors import InputError
 from egs_bench.eval.evaluate import evaluate_run
 from egs_bench.eval.metrics_file import METRICS_SCHEMA_VERSION, parse_metrics, read_metrics
+
+DATA = Path(__file__).parent / "metrics_files"
 
 
 @pytest.fixture(scope="module")
@@ -71,6 +74,20 @@ def test_a_file_without_the_sections_added_later_still_reads(evaluated, tmp_path
     minimal = read_metrics(_rewrite(run_dir, tmp_path / "minimal", required_only))
     assert minimal.protocol == "egs" and minimal.ate_rmse_m == written["ate"]["rmse_m"]
     assert minimal.notes == () and minimal.method is None and minimal.rendering is None
+
+
+def test_a_file_of_the_first_layout_reads(tmp_path) -> None:
+    """``metrics_files/metrics_4061f7e.json`` was written by ``evaluate_run`` at commit 4061f7e (the
+    first metrics.json: no ``rpe``, no ``coverage``) on the fixtures of that commit."""
+    shutil.copy(DATA / "metrics_4061f7e.json", tmp_path / "metrics.json")
+    written = json.loads((tmp_path / "metrics.json").read_text())
+    m = read_metrics(tmp_path)
+    assert "rpe" not in written and "coverage" not in written
+    assert m.rpe is None and (m.frames_processed, m.frames_in_sequence) == (None, None)
+    assert (m.protocol, m.method, m.sequence, m.status) == ("egs", "egs", "tiny", "done")
+    assert m.ate_rmse_m == written["ate"]["rmse_m"] and m.lpips == written["rendering"]["lpips"]
+    assert (m.psnr_db, m.ssim) == (written["rendering"]["psnr_db"], written["rendering"]["ssim"])
+    assert (m.fps, m.render_fps) == (written["speed"]["fps"], written["speed"]["render_fps"])
 
 
 def _set(path: tuple[str, ...], value: Any):
