@@ -26,6 +26,10 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from egs_bench.datasets.sequence import Sequence
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
@@ -87,7 +91,7 @@ def cuda_tests(timeout_s: float) -> dict:
             "log_tail": lines[-40:]}
 
 
-def run_method(method: str, seq, frames: int, out: Path, schedule: str) -> dict:
+def run_method(method: str, seq: Sequence, frames: int, out: Path, schedule: str) -> dict:
     import numpy as np
 
     from egs_bench.eval.ate import ate_from_files

@@ -41,6 +41,7 @@ from pathlib import Path
 import numpy as np
 
 from egs_bench.datasets.registry import load_sequence
+from egs_bench.datasets.sequence import Sequence
 from egs_bench.eval.evaluate import evaluate_run
 from egs_bench.fileio import write_text_atomic
 from egs_bench.geometry import invert_pose, rotation_angle
@@ -77,7 +78,7 @@ def errors_csv(rows: list[tuple[float, ...]]) -> str:
     return text.getvalue()
 
 
-def ground_truth_w2c(seq) -> Callable[[int], np.ndarray]:
+def ground_truth_w2c(seq: Sequence) -> Callable[[int], np.ndarray]:
     """``pose(t_us)``: the world-to-camera ground truth [4, 4] of ``seq`` at time ``t_us``
     (microseconds), interpolated in ``groundtruth_dense.txt``."""
     dense = seq.dense_trajectory
@@ -97,7 +98,7 @@ class OracleTracker:
     exposure trajectory of ``seq`` for frames ``<= until`` (all frames when None). Appends
     each tracked frame's errors (:data:`ERROR_COLUMNS`) to ``errors`` when given."""
 
-    def __init__(self, inner: Tracker, seq, until: int | None = None,
+    def __init__(self, inner: Tracker, seq: Sequence, until: int | None = None,
                  errors: list[tuple[float, ...]] | None = None) -> None:
         self.inner, self.seq, self.until, self.errors = inner, seq, until, errors
         self.gt_w2c = ground_truth_w2c(seq)
@@ -123,7 +124,7 @@ class TrueExposure0Mapper:
     ``T_0`` at the ground truth before ``inner`` initialises the map, for methods with the blur
     model (``T_tau`` stays where the system put it, at the ground truth)."""
 
-    def __init__(self, inner: MapOptimiser, seq, blur_model: bool) -> None:
+    def __init__(self, inner: MapOptimiser, seq: Sequence, blur_model: bool) -> None:
         self.inner, self.blur_model = inner, blur_model
         self.start_cw = ground_truth_w2c(seq)(seq.exposure(0)[0])
 
@@ -139,7 +140,7 @@ class TrueExposure0Mapper:
         return self.inner.refine(states, observations, keyframes, iterations)
 
 
-def oracle_components(seq, until: int | None, errors: list[tuple[float, ...]] | None,
+def oracle_components(seq: Sequence, until: int | None, errors: list[tuple[float, ...]] | None,
                       exposure0: bool) -> SlamComponents:
     """The SLAM components of an oracle run: :class:`OracleTracker` around the built-in
     tracker and, with ``exposure0``, :class:`TrueExposure0Mapper` around the built-in mapper."""

@@ -33,8 +33,8 @@ import numpy as np
 from egs_bench.datasets.inspect import blur_extent_px
 from egs_bench.datasets.registry import load_sequence
 from egs_bench.datasets.sequence import Sequence
-from egs_bench.eval.evaluate import read_metrics
 from egs_bench.eval.image_metrics import psnr_masked
+from egs_bench.eval.metrics_file import read_metrics
 
 BLUR_BINS_PX = (0.0, 6.0, 10.0, 14.0, float("inf"))
 
@@ -62,7 +62,7 @@ def frame_bounds(seq: Sequence, frames: list[int], scale: float
 
 def run_psnr(run_dir: Path) -> dict[int, float]:
     """A run's per-frame PSNR [dB] from its ``metrics.json``, by frame index."""
-    per_frame = (read_metrics(run_dir).get("rendering") or {}).get("per_frame")
+    per_frame = (read_metrics(run_dir).rendering or {}).get("per_frame")
     if not per_frame:
         raise SystemExit(f"{run_dir}/metrics.json: no per-frame rendering metrics")
     return dict(zip(per_frame["frame"], per_frame["psnr_db"], strict=True))

@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from egs_bench.datasets.registry import load_sequence
+from egs_bench.datasets.sequence import Sequence
 from egs_bench.geometry import invert_pose, rotation_angle
 from egs_bench.runs.registry import get_method
 from egs_bench.slam.components import SlamComponents
@@ -108,7 +109,8 @@ def load_traces(path: Path) -> dict[int, TrackTrace]:
                           data[f"poses1_cw_{i}"]) for i in frames}
 
 
-def report(seq, method: str, preset: str, traces: dict[int, TrackTrace], budget: int) -> None:
+def report(seq: Sequence, method: str, preset: str, traces: dict[int, TrackTrace],
+           budget: int) -> None:
     truth = {i: invert_pose(np.asarray(seq.poses[i])) for i in traces}
     print(f"{seq.name}, {method}, preset {preset}, {len(traces)} tracked frames, "
           f"budget {budget} iterations")

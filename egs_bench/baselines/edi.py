@@ -54,11 +54,14 @@ from __future__ import annotations
 
 import time
 from dataclasses import asdict, dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from egs_bench.errors import ConfigError
+
+if TYPE_CHECKING:
+    from egs_bench.datasets.sequence import Sequence
 
 
 @dataclass(frozen=True)
@@ -361,7 +364,7 @@ def deblur_frame(
     return EdiResult(latent(best_c), best_c, best_e, len(t), time.perf_counter() - t_wall)
 
 
-def deblur_sequence_frame(seq, index: int, config: EdiConfig | None = None
+def deblur_sequence_frame(seq: Sequence, index: int, config: EdiConfig | None = None
                           ) -> tuple[np.ndarray, EdiResult]:
     """EDI of frame ``index`` of an opened :class:`~egs_bench.datasets.sequence.Sequence`.
 

@@ -55,16 +55,19 @@ import re
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from egs_bench.errors import ConfigError, InputError
 from egs_bench.fileio import atomic_dir
-from egs_bench.geometry import Trajectory, pose_from_tq, read_tum
+from egs_bench.geometry import Intrinsics, Trajectory, pose_from_tq, read_tum
 from egs_bench.images import read_ldr_image
 from egs_bench.outputs import prepare_output
 from egs_bench.runs.folder import RunFolder
+
+if TYPE_CHECKING:
+    from egs_bench.datasets.sequence import Sequence
 
 _RENDER = re.compile(r"^(\d+)\.png$")
 IMPORT_FORMATS = ("tum", "orbslam2", "photoslam", "monogs", "rampvo")
@@ -157,7 +160,7 @@ def _check_render_frames(renders: Mapping[int, Any], num_frames: int, where: Pat
                                 f"{num_frames} frames")
 
 
-def _check_renders(renders: Mapping[int, Path | np.ndarray], seq) -> None:
+def _check_renders(renders: Mapping[int, Path | np.ndarray], seq: Sequence | None) -> None:
     """Decode every render file and compare its size with the sequence's, before anything is
     written (a header-only check passes a truncated file).
 
@@ -468,7 +471,7 @@ class _Frames:
     what: str
 
 
-def _frames(export_dir: str | Path | None, seq) -> _Frames:
+def _frames(export_dir: str | Path | None, seq: Sequence) -> _Frames:
     if export_dir is not None:
         from egs_bench.interop.export import read_export_index
 
@@ -523,7 +526,7 @@ def _to_export_frames(est: ExternalEstimate, frames: _Frames, fmt: str,
     return idx, kf
 
 
-def _render_ply(ply: Path, poses_wc: np.ndarray, intrinsics) -> list[np.ndarray]:
+def _render_ply(ply: Path, poses_wc: np.ndarray, intrinsics: Intrinsics) -> list[np.ndarray]:
     """Render a 3DGS map at each pose; colours are taken as display (sRGB-encoded) values, as
     MonoGS trains them on the 8-bit frames (no transfer curve applied), clipped to [0, 1]."""
     import torch

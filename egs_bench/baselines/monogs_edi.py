@@ -19,7 +19,7 @@ import io
 from collections import OrderedDict
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, cast
+from typing import TYPE_CHECKING, Any
 
 from egs_bench.baselines.edi import EdiConfig, EdiResult
 from egs_bench.runs.registry import register_builtin
@@ -35,7 +35,8 @@ EDI_FRAMES_FILE = "edi_frames.csv"
 
 
 class EdiSequence:
-    """Read-only view of a sequence whose observed frames are EDI-deblurred.
+    """Read-only view of a sequence whose observed frames are EDI-deblurred: a
+    :class:`~egs_bench.datasets.sequence_view.SequenceView`.
 
     Everything except :meth:`rgb` is the wrapped sequence's. Deblurred frames are computed on
     first access and kept in a small LRU cache (the SLAM reads each frame once; evaluation
@@ -117,8 +118,8 @@ class MonoGsEdiMethod(ConfiguredSlamMethod):
         run_file = Path(out) / RUN_FILE
         before = run_file.read_bytes() if run_file.is_file() else None
         try:
-            # the view has Sequence's interface (delegation), with EDI images from rgb()
-            return run_slam(cast("Sequence", view), out, method_name=self.name, config=config,
+            # the view is a SequenceView: the sequence's data (delegation), EDI images from rgb()
+            return run_slam(view, out, method_name=self.name, config=config,
                             settings=RunSettings(preset, device, seed, max_frames, progress,
                                                  overwrite),
                             components=self.components)

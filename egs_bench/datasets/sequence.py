@@ -17,7 +17,7 @@ from __future__ import annotations
 import csv
 import functools
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal, overload
 
 import numpy as np
 import yaml
@@ -284,8 +284,15 @@ class Sequence:
         name = self._frames[i].get(column) or ""
         return self.path / name if name else None
 
+    @overload
+    def frame_path(self, i: int, column: Literal["rgb", "depth"]) -> Path: ...
+
+    @overload
+    def frame_path(self, i: int, column: str) -> Path | None: ...
+
     def frame_path(self, i: int, column: str) -> Path | None:
-        """File of frame ``i``'s ``"rgb"``, ``"depth"`` or ``"sharp"`` image (None if absent)."""
+        """File of frame ``i``'s ``"rgb"``, ``"depth"`` or ``"sharp"`` image (None if absent;
+        :meth:`open` refuses a frame without an rgb or depth file)."""
         return self._frame_file(i, column)
 
     def rgb(self, i: int) -> np.ndarray:

@@ -2,7 +2,8 @@
 
 ``metrics.json`` holds every number (summary and per frame), the full protocol, the run's identity
 and status, and the versions of the tools that computed it. It contains no time stamps or
-machine-specific paths, so evaluating the same run twice writes byte-identical files.
+machine-specific paths, so evaluating the same run twice writes byte-identical files. It is read
+back with :func:`egs_bench.eval.metrics_file.read_metrics`.
 """
 
 from __future__ import annotations
@@ -19,16 +20,14 @@ from egs_bench import __version__
 from egs_bench.errors import InputError
 from egs_bench.eval.ate import MIN_MATCHED_POSES, AteResult, compute_ate
 from egs_bench.eval.image_metrics import psnr, psnr_masked, ssim
+from egs_bench.eval.metrics_file import METRICS_SCHEMA_VERSION
 from egs_bench.eval.protocols import DEFAULT_PROTOCOL, Protocol, get_protocol
-from egs_bench.fileio import read_text, write_text_atomic
+from egs_bench.fileio import write_text_atomic
 from egs_bench.geometry import Trajectory, read_tum
 from egs_bench.runs.folder import RunFolder
 
 if TYPE_CHECKING:
     from egs_bench.datasets.sequence import Sequence
-
-METRICS_SCHEMA_VERSION = 1
-
 
 def _tool_versions() -> dict[str, str]:
     out = {"egs_bench": __version__}
@@ -58,14 +57,18 @@ def open_sequence(path: Path) -> Sequence:
     return Sequence.open(path, check_images=False)
 
 
-def _ground_truth(run: RunFolder, seq) -> tuple[Trajectory, str]:
+def _ground_truth(run: RunFolder, seq: Sequence | None) -> tuple[Trajectory, str]:
+    """The run's ground truth (its own file, else its sequence's) and the name to report."""
     if run.groundtruth_path is not None:
         return read_tum(run.groundtruth_path), str(run.groundtruth_path)
+    if seq is None:
+        raise ValueError(f"{run.path}: the run names neither a ground-truth file nor a "
+                         "sequence, and no sequence was given")
     return Trajectory(np.asarray(seq.timestamps_s, dtype=np.float64),
                       np.asarray(seq.poses, dtype=np.float64)), str(seq.path / "groundtruth.txt")
 
 
-def evaluate_ate(run: RunFolder, protocol: Protocol, seq=None) -> dict[str, Any]:
+def evaluate_ate(run: RunFolder, protocol: Protocol, seq: Sequence | None = None) -> dict[str, Any]:
     """ATE of the run under ``protocol``; returns the summary dict stored in ``metrics.json``."""
     return ate_summary(run, protocol, compute_run_ate(run, protocol, seq))
 
@@ -80,7 +83,7 @@ def ate_summary(run: RunFolder, protocol: Protocol, result: AteResult) -> dict[s
     return summary
 
 
-def evaluate_rpe(run: RunFolder, protocol: Protocol, seq=None) -> dict[str, Any]:
+def evaluate_rpe(run: RunFolder, protocol: Protocol, seq: Sequence | None = None) -> dict[str, Any]:
     """RPE of the run's whole estimated trajectory (per frame and per metre, translation and
     rotation; :func:`~egs_bench.eval.rpe.standard_rpe`): the summary stored in
     ``metrics.json``."""
@@ -93,7 +96,8 @@ def evaluate_rpe(run: RunFolder, protocol: Protocol, seq=None) -> dict[str, Any]
     return out
 
 
-def compute_run_ate(run: RunFolder, protocol: Protocol, seq=None) -> AteResult:
+def compute_run_ate(run: RunFolder, protocol: Protocol, seq: Sequence | None = None
+                    ) -> AteResult:
     """The :class:`~egs_bench.eval.ate.AteResult` of a run under ``protocol``.
 
     Raises:
@@ -192,7 +196,7 @@ def rendering_frames(num_frames: int, protocol: Protocol,
     return frames
 
 
-def processed_frames(run: RunFolder, protocol: Protocol, seq) -> int:
+def processed_frames(run: RunFolder, protocol: Protocol, seq: Sequence) -> int:
     """Number of leading sequence frames the run covers: those up to its last estimated pose.
 
     A run stopped early (e.g. ``--max-frames``) is scored on the frames it processed; the
@@ -208,8 +212,8 @@ def processed_frames(run: RunFolder, protocol: Protocol, seq) -> int:
     return int(np.searchsorted(stamps, last + protocol.ate_max_diff_s, side="right"))
 
 
-def evaluate_renders(run: RunFolder, protocol: Protocol, seq, num_frames: int | None = None,
-                     progress: bool = False) -> dict[str, Any]:
+def evaluate_renders(run: RunFolder, protocol: Protocol, seq: Sequence,
+                     num_frames: int | None = None, progress: bool = False) -> dict[str, Any]:
     """PSNR / SSIM / LPIPS of the run's renders under ``protocol`` (per frame and mean).
 
     Without LPIPS weights (see :func:`egs_bench.eval.lpips.find_weights`) PSNR and SSIM are
@@ -382,17 +386,3 @@ def evaluate_run(run_dir: str | Path, protocol: str | Protocol = DEFAULT_PROTOCO
     if write:
         write_text_atomic(run.metrics_path, json.dumps(metrics, indent=1) + "\n")
     return metrics
-
-
-def read_metrics(run_dir: str | Path) -> dict[str, Any]:
-    """Read a run's ``metrics.json``; raises :class:`InputError` if missing or malformed."""
-    path = Path(run_dir) / "metrics.json"
-    if not path.is_file():
-        raise InputError(path, "not found (run `egs-bench eval` first)")
-    try:
-        data = json.loads(read_text(path))
-    except json.JSONDecodeError as exc:
-        raise InputError(path, f"not valid JSON ({exc})") from None
-    if not isinstance(data, dict) or "protocol" not in data or "ate" not in data:
-        raise InputError(path, "not an egs-bench metrics file (no 'protocol'/'ate')")
-    return data

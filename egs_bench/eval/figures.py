@@ -20,6 +20,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 from matplotlib.figure import Figure
@@ -28,6 +29,9 @@ from matplotlib.patches import Rectangle
 from egs_bench.errors import ConfigError, InputError
 from egs_bench.eval.ate import AteResult
 from egs_bench.eval.plots import save_figure, top_view_axes
+
+if TYPE_CHECKING:
+    from egs_bench.runs.folder import RunFolder
 
 CROP_COLORS = ("#e41a1c", "#377eb8", "#4daf4a", "#ff7f00")
 _GAP = 4  # px between an image and its crop strip
@@ -217,7 +221,7 @@ def trajectory_figure(run_dirs: Sequence[str | Path], path: str | Path,
                                             "ground truth")
 
 
-def _same_sequence(runs) -> None:
+def _same_sequence(runs: Sequence[RunFolder]) -> None:
     names = {r.sequence_name for r in runs}
     if len(names) > 1:
         raise InputError(runs[-1].path, f"runs are on different sequences "

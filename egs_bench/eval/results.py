@@ -34,6 +34,7 @@ from pathlib import Path
 from typing import Any
 
 from egs_bench.errors import EgsBenchError, InputError, reraise_interruption
+from egs_bench.eval.metrics_file import RunMetrics, parse_metrics, read_metrics
 from egs_bench.eval.protocols import DEFAULT_PROTOCOL, get_protocol
 from egs_bench.runs.folder import (
     CONFIG_FILE,
@@ -181,46 +182,11 @@ def _check_text_files(run_dir: Path, names: tuple[str, ...]) -> None:
                 raise InputError(path, "not a text file (binary content)") from None
 
 
-def _number(section: Any, key: str, where: Path) -> float | None:
-    if section is None:
-        return None
-    if not isinstance(section, Mapping):
-        raise InputError(where, f"expected a mapping with {key!r}, found {type(section).__name__}")
-    value = section.get(key)
-    if value is None:
-        return None
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        raise InputError(where, f"{key!r} must be a number, found {value!r}")
-    return float(value) if math.isfinite(value) else None
-
-
-def metric_values(metrics: Mapping[str, Any], where: Path) -> dict[str, float]:
-    """Metric key -> value (stored unit) from a ``metrics.json`` mapping, type-checked.
-
-    Raises:
-        InputError: a section or value has the wrong type (names ``where``).
-    """
-    out = {
-        "ate": _number(metrics.get("ate"), "rmse_m", where),
-        "psnr": _number(metrics.get("rendering"), "psnr_db", where),
-        "ssim": _number(metrics.get("rendering"), "ssim", where),
-        "lpips": _number(metrics.get("rendering"), "lpips", where),
-        "fps": _number(metrics.get("speed"), "fps", where),
-        "render_fps": _number(metrics.get("speed"), "render_fps", where),
-    }
+def metric_values(metrics: RunMetrics) -> dict[str, float]:
+    """Metric key of :data:`METRICS` -> value (stored unit), for the metrics a run has."""
+    out = {"ate": metrics.ate_rmse_m, "psnr": metrics.psnr_db, "ssim": metrics.ssim,
+           "lpips": metrics.lpips, "fps": metrics.fps, "render_fps": metrics.render_fps}
     return {k: v for k, v in out.items() if v is not None}
-
-
-def _coverage(metrics: Mapping[str, Any], where: Path) -> tuple[int | None, int | None]:
-    cov = metrics.get("coverage")
-    if cov is None:
-        return None, None
-    if not isinstance(cov, Mapping):
-        raise InputError(where, "'coverage' must be a mapping")
-    done, total = cov.get("frames_processed"), cov.get("frames_in_sequence")
-    if not all(isinstance(v, int) and not isinstance(v, bool) for v in (done, total)):
-        raise InputError(where, "'coverage' needs integer frames_processed / frames_in_sequence")
-    return done, total
 
 
 def _read_sweep_record(run_dir: Path) -> dict[str, Any]:
@@ -234,21 +200,20 @@ def _read_sweep_record(run_dir: Path) -> dict[str, Any]:
     return data if isinstance(data, dict) else {}
 
 
-def _load_metrics(run: RunFolder, protocol: str, evaluate_missing: bool) -> dict[str, Any] | None:
+def _load_metrics(run: RunFolder, protocol: str, evaluate_missing: bool) -> RunMetrics | None:
     """The run's metrics under ``protocol`` (evaluated if needed), ``None`` if not available."""
-    from egs_bench.eval.evaluate import evaluate_run, read_metrics
+    from egs_bench.eval.evaluate import evaluate_run
 
     data = None
     if run.metrics_path.is_file():
         data = read_metrics(run.path)
-        proto = data.get("protocol")
-        if not isinstance(proto, Mapping):
-            raise InputError(run.metrics_path, "'protocol' must be a mapping with a 'name'")
-        if proto.get("name") != protocol:
+        if data.protocol != protocol:
             data = None
     if data is None and evaluate_missing:
         # another protocol's metrics.json is left alone; a missing one is written
-        data = evaluate_run(run.path, protocol, write=not run.metrics_path.is_file())
+        data = parse_metrics(evaluate_run(run.path, protocol,
+                                          write=not run.metrics_path.is_file()),
+                             run.metrics_path)
     return data
 
 
@@ -293,8 +258,8 @@ def read_run_result(path: Path, root: Path, protocol: str = DEFAULT_PROTOCOL,
         if data is None:
             return RunResult(**base, status="not_evaluated",
                              reason=f"not evaluated under protocol {protocol!r}")
-        values = metric_values(data, run.metrics_path)
-        done, total = _coverage(data, run.metrics_path)
+        values = metric_values(data)
+        done, total = data.frames_processed, data.frames_in_sequence
     except EgsBenchError as exc:
         return RunResult(**base, status="broken", reason=str(exc))
     except Exception as exc:  # a bad folder must become a footnote, not an abort

@@ -12,7 +12,6 @@ time and failure reason, plus ATE and PSNR where evaluated, to ``<out>/sweep_sum
 from __future__ import annotations
 
 import dataclasses
-import json
 import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -22,6 +21,7 @@ from typing import Any
 import pandas as pd
 
 from egs_bench.errors import ConfigError, EgsBenchError, InputError
+from egs_bench.eval.metrics_file import read_metrics
 from egs_bench.eval.results import metric_values
 from egs_bench.experiments.backends import Outcome, plan_slots, run_local, run_slurm
 from egs_bench.experiments.spec import RunSpec, SweepSpec, expand, in_shard
@@ -31,7 +31,6 @@ from egs_bench.experiments.worker import (
     STARTS_WORK,
     decide,
     lock_is_held,
-    metrics_protocol,
     read_record,
     run_state,
 )
@@ -109,13 +108,13 @@ def prepare(spec: SweepSpec, out: Path | None = None,
 def _metrics(run_dir: Path, protocol: str) -> tuple[float, float]:
     """ATE [cm] and PSNR [dB] of a run's ``metrics.json`` under ``protocol`` (NaN where absent,
     unreadable or made under another protocol)."""
-    path = run_dir / "metrics.json"
-    if metrics_protocol(run_dir) != protocol:
-        return math.nan, math.nan
     try:
-        values = metric_values(json.loads(path.read_text()), path)
-    except (OSError, ValueError, UnicodeDecodeError, EgsBenchError):
+        metrics = read_metrics(run_dir)
+    except EgsBenchError:
         return math.nan, math.nan
+    if metrics.protocol != protocol:
+        return math.nan, math.nan
+    values = metric_values(metrics)
     return 100.0 * values.get("ate", math.nan), values.get("psnr", math.nan)
 
 

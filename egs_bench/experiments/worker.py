@@ -42,6 +42,7 @@ from pathlib import Path
 from typing import Any
 
 from egs_bench.errors import EgsBenchError, interruption_reason, reraise_interruption
+from egs_bench.eval.metrics_file import read_metrics
 from egs_bench.eval.results import SWEEP_RECORD_FILE
 from egs_bench.experiments.spec import STATE_DIR, RunSpec
 from egs_bench.fileio import FileLock, owner_note, write_text_atomic
@@ -103,12 +104,9 @@ def run_state(run_dir: str | Path) -> str | None:
 def metrics_protocol(run_dir: str | Path) -> str | None:
     """The protocol name in the run's ``metrics.json`` (``None`` when absent or unreadable)."""
     try:
-        data = json.loads((Path(run_dir) / "metrics.json").read_text())
-    except (OSError, json.JSONDecodeError, UnicodeDecodeError):
+        return read_metrics(run_dir).protocol
+    except EgsBenchError:
         return None
-    proto = data.get("protocol") if isinstance(data, dict) else None
-    name = proto.get("name") if isinstance(proto, dict) else None
-    return name if isinstance(name, str) else None
 
 
 @dataclass(frozen=True)

@@ -58,7 +58,7 @@ import shutil
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, overload
+from typing import TYPE_CHECKING, Any, overload
 
 import numpy as np
 import yaml
@@ -76,6 +76,9 @@ from egs_bench.interop.camera_files import (
     rampvo_k_yaml,
 )
 from egs_bench.outputs import check_never_replaced
+
+if TYPE_CHECKING:
+    from egs_bench.datasets.sequence import Sequence
 
 FORMATS = ("tum-rgbd", "replica", "eds")
 MANIFEST = "egs_export.yaml"
@@ -148,7 +151,7 @@ def _write_index_map(path: Path, t_export: np.ndarray, t_seq: np.ndarray,
             writer.writerow([j, j, f"{te:.6f}", f"{ts:.6f}", rgb[j], depth[j]])
 
 
-def _copy_rgb(seq, i: int, dst: Path) -> None:
+def _copy_rgb(seq: Sequence, i: int, dst: Path) -> None:
     """Copy frame ``i``'s PNG bytes when it is plain 8-bit RGB (what every loader reads),
     re-encode it otherwise.
 
@@ -167,7 +170,7 @@ def _copy_rgb(seq, i: int, dst: Path) -> None:
         write_ldr_image(dst, pixels)  # dst is a .png name
 
 
-def _depth_png(seq, i: int, dst: Path, scale: float) -> int:
+def _depth_png(seq: Sequence, i: int, dst: Path, scale: float) -> int:
     """Write frame ``i``'s depth at ``scale`` units per metre; returns the number of valid
     pixels lost to the 16-bit range. Copies the bytes when the scale is unchanged, after
     decoding them (see :func:`_copy_rgb`).
@@ -188,7 +191,7 @@ def _depth_png(seq, i: int, dst: Path, scale: float) -> int:
     return int(((depth > 0) & (raw == 0)).sum())
 
 
-def _manifest(tmp: Path, seq, fmt: str, n: int, retimed: bool, files: dict[str, str],
+def _manifest(tmp: Path, seq: Sequence, fmt: str, n: int, retimed: bool, files: dict[str, str],
               extra: dict[str, Any], notes: list[str]) -> None:
     cam = opencv_camera(seq.intrinsics)
     data = {
@@ -211,8 +214,8 @@ def _manifest(tmp: Path, seq, fmt: str, n: int, retimed: bool, files: dict[str, 
     (tmp / MANIFEST).write_text(yaml.safe_dump(to_plain(data), sort_keys=False))
 
 
-def _export_tum(seq, tmp: Path, n: int, t_export: np.ndarray, out_abs: Path, progress: bool
-                ) -> _Written:
+def _export_tum(seq: Sequence, tmp: Path, n: int, t_export: np.ndarray, out_abs: Path,
+                progress: bool) -> _Written:
     from tqdm import tqdm
 
     (tmp / "rgb").mkdir()
@@ -278,7 +281,7 @@ class _LazyFrames(collections.abc.Sequence[np.ndarray]):
         return self._read(i)
 
 
-def _scene_bound(seq, n: int, margin: float = 0.2) -> list[list[float]]:
+def _scene_bound(seq: Sequence, n: int, margin: float = 0.2) -> list[list[float]]:
     """Axis-aligned world box of the camera centres and the valid depth points of (up to 20)
     frames, plus a margin (NICE-SLAM's ``mapping.bound``)."""
     centres = seq.poses[:n, :3, 3]
@@ -296,7 +299,7 @@ def _scene_bound(seq, n: int, margin: float = 0.2) -> list[list[float]]:
             for a, b in zip(lo, hi, strict=True)]
 
 
-def _export_replica(seq, tmp: Path, n: int, t_export: np.ndarray, out_abs: Path,
+def _export_replica(seq: Sequence, tmp: Path, n: int, t_export: np.ndarray, out_abs: Path,
                     jpeg_quality: int) -> _Written:
     from egs_bench.datasets.replica import REPLICA_DEPTH_SCALE, export_replica_layout
 
@@ -325,7 +328,7 @@ def _export_replica(seq, tmp: Path, n: int, t_export: np.ndarray, out_abs: Path,
     return files, {"depth_scale": REPLICA_DEPTH_SCALE, "jpeg_quality": jpeg_quality}, notes
 
 
-def _export_eds(seq, tmp: Path, n: int, t_export: np.ndarray) -> _Written:
+def _export_eds(seq: Sequence, tmp: Path, n: int, t_export: np.ndarray) -> _Written:
     import h5py
 
     (tmp / "image_left").mkdir()
@@ -352,7 +355,7 @@ def _export_eds(seq, tmp: Path, n: int, t_export: np.ndarray) -> _Written:
         grp.create_dataset("height", data=np.int64(seq.height))
         grp.create_dataset("width", data=np.int64(seq.width))
         t_first, t_last = stream.t_first, stream.t_last
-        if t_first is not None:
+        if t_first is not None and t_last is not None:  # both None when it is empty
             t_stop = min(t_last, int(seq.t_end_us[n - 1])) + 1
             for t0 in range(int(t_first), t_stop, _EVENT_CHUNK_US):
                 ev = stream.window(t0, min(t0 + _EVENT_CHUNK_US, t_stop))
@@ -370,8 +373,8 @@ def _export_eds(seq, tmp: Path, n: int, t_export: np.ndarray) -> _Written:
         notes
 
 
-def export_sequence(sequence, out: str | Path, *, fmt: str, overwrite: bool = False,
-                    retime: str = "auto", jpeg_quality: int = 95,
+def export_sequence(sequence: str | Path | Sequence, out: str | Path, *, fmt: str,
+                    overwrite: bool = False, retime: str = "auto", jpeg_quality: int = 95,
                     progress: bool = False) -> ExportResult:
     """Export ``sequence`` (a folder or an opened :class:`Sequence`) to ``out`` in ``fmt``.
 

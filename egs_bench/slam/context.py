@@ -8,11 +8,11 @@ from one :class:`SlamContext` instead of a dozen positional arguments each.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 import torch
 
+from egs_bench.datasets.sequence_view import SequenceView
 from egs_bench.geometry import Intrinsics
 from egs_bench.render import GaussianMap
 from egs_bench.render.gaussian_map import FrozenGaussians
@@ -51,10 +51,9 @@ class SlamContext:
     loss_terms: tuple[LossTerm, ...] = LOSS_TERMS
 
     @classmethod
-    def build(cls, seq: Any, cfg: SlamConfig, device: str | torch.device = "cpu",
+    def build(cls, seq: SequenceView, cfg: SlamConfig, device: str | torch.device = "cpu",
               loss_terms: tuple[LossTerm, ...] = LOSS_TERMS) -> SlamContext:
-        """The context of running ``cfg`` on ``seq`` (an opened sequence, or a view of one
-        with ``intrinsics``, ``exposure(i)``, ``eps``, the thresholds and ``len``)."""
+        """The context of running ``cfg`` on ``seq`` (an opened sequence, or a view of one)."""
         dev = torch.device(device)
         cam = internal_intrinsics(seq.intrinsics, cfg.budget.resolution_scale)
         if cfg.method.theta is not None:

@@ -8,6 +8,7 @@ import cv2
 import numpy as np
 import torch
 
+from egs_bench.datasets.sequence_view import SequenceView
 from egs_bench.geometry import Intrinsics
 from egs_bench.slam.config import SlamConfig
 from egs_bench.slam.exposure import segment_edges_us, subpose_fractions
@@ -66,7 +67,7 @@ def _resize_depth(depth: np.ndarray, w: int, h: int) -> np.ndarray:
     return out.astype(np.float32)
 
 
-def load_frame(seq, i: int, cam: Intrinsics, cfg: SlamConfig, want_events: bool,
+def load_frame(seq: SequenceView, i: int, cam: Intrinsics, cfg: SlamConfig, want_events: bool,
                device: torch.device) -> FrameObs:
     """Read frame ``i`` of ``seq`` and prepare it at the resolution of ``cam``."""
     w, h = cam.width, cam.height
@@ -80,7 +81,7 @@ def load_frame(seq, i: int, cam: Intrinsics, cfg: SlamConfig, want_events: bool,
     n_events = 0
     event_maps = None
     if blur:
-        has_events = getattr(seq, "has_events", True)
+        has_events = seq.has_events
         ev_t = seq.events.window(t0, t1 + 1).t if has_events else np.zeros(0, np.int64)
         n_events = len(ev_t)
         fr = subpose_fractions(ev_t, t0, t1, cfg.n_segments)

@@ -11,7 +11,7 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
-from egs_bench.datasets.sequence import Sequence
+from egs_bench.datasets.sequence_view import SequenceView
 from egs_bench.errors import ConfigError, InputError
 from egs_bench.fileio import write_text_atomic
 from egs_bench.geometry import invert_pose
@@ -25,7 +25,7 @@ from egs_bench.slam.render_model import render_views
 from egs_bench.slam.system import FrameReport, SlamResult, SlamSystem
 
 
-def check_inputs(seq: Sequence, config: SlamConfig, max_frames: int | None) -> int:
+def check_inputs(seq: SequenceView, config: SlamConfig, max_frames: int | None) -> int:
     """The number of frames to process; rejects runs that cannot give a meaningful result.
 
     Raises:
@@ -66,7 +66,7 @@ class RunSettings:
     overwrite: bool = False
 
 
-def run_slam(seq: Sequence, out: str | Path, *, method_name: str, config: SlamConfig,
+def run_slam(seq: SequenceView, out: str | Path, *, method_name: str, config: SlamConfig,
              settings: RunSettings = RunSettings(),
              components: SlamComponents | None = None) -> RunFolder:
     """Run the SLAM system configured by ``config`` on ``seq``; write a complete run folder.
@@ -152,7 +152,7 @@ def run_slam(seq: Sequence, out: str | Path, *, method_name: str, config: SlamCo
     return run
 
 
-def _write_partial_trajectory(run: RunFolder, system: SlamSystem, seq: Sequence) -> None:
+def _write_partial_trajectory(run: RunFolder, system: SlamSystem, seq: SequenceView) -> None:
     """The trajectory of the frames processed before an interruption or a failure, so the
     run can still be scored over them (the run stays marked interrupted / failed)."""
     states = getattr(system, "states", None) or []
@@ -168,7 +168,7 @@ def _write_partial_trajectory(run: RunFolder, system: SlamSystem, seq: Sequence)
 
 
 @torch.no_grad()
-def _write_renders(run: RunFolder, system: SlamSystem, result: SlamResult, seq: Sequence
+def _write_renders(run: RunFolder, system: SlamSystem, result: SlamResult, seq: SequenceView
                    ) -> float:
     """Render the sharp latent image at every frame's ``T_tau`` at full resolution; returns the
     rendering speed (renders per second)."""

@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import torch
 
+from egs_bench.datasets.sequence_view import SequenceView
 from egs_bench.errors import ConfigError, InputError
 from egs_bench.geometry import invert_pose
 from egs_bench.interrupts import raise_if_interrupted
@@ -64,7 +65,8 @@ class SlamSystem:
     """EGS-SLAM (or a configured variant) on one sequence.
 
     Args:
-        seq: an opened :class:`~egs_bench.datasets.sequence.Sequence`.
+        seq: an opened :class:`~egs_bench.datasets.sequence.Sequence`, or a view of one
+            (:class:`~egs_bench.datasets.sequence_view.SequenceView`).
         cfg: validated configuration.
         device: torch device for maps and images.
         seed: seeds every random choice (insertion subsampling, random mapping views).
@@ -73,7 +75,7 @@ class SlamSystem:
             configured by ``cfg``); see :mod:`egs_bench.slam.components`.
     """
 
-    def __init__(self, seq, cfg: SlamConfig, device: str = "cpu", seed: int = 0,
+    def __init__(self, seq: SequenceView, cfg: SlamConfig, device: str = "cpu", seed: int = 0,
                  log: Callable[[str], None] | None = None,
                  components: SlamComponents | None = None) -> None:
         self.seq, self.cfg = seq, cfg
@@ -89,7 +91,7 @@ class SlamSystem:
         self.crf = make_crf(m.crf, m.crf_nodes, m.crf_alpha, m.crf_init, self.device)
         self.states: list[FrameState] = []  # filled by run()
         self.want_events = cfg.method.event_tracking or cfg.method.event_mapping
-        if self.want_events and not getattr(seq, "has_events", True):
+        if self.want_events and not seq.has_events:
             self.log("sequence has no events: event losses see empty event maps")
         self.tracker = parts.tracker(self.ctx)
         self.mapper = parts.mapper(self.ctx, self.gmap, self.crf, self.rng)

@@ -157,7 +157,8 @@ def test_decide_from_the_run_folder(tmp_path, seqs) -> None:
     def state(record: dict | None, status: dict | None, evaluated_under: str | None = "egs"
               ) -> str:
         run_dir.mkdir(parents=True, exist_ok=True)
-        metrics = None if evaluated_under is None else {"protocol": {"name": evaluated_under}}
+        metrics = None if evaluated_under is None else {"protocol": {"name": evaluated_under},
+                                                        "ate": {"rmse_m": 0.01}}
         for name, data in (("sweep.json", record), ("status.json", status),
                            ("metrics.json", metrics)):
             (run_dir / name).unlink(missing_ok=True)
@@ -175,6 +176,8 @@ def test_decide_from_the_run_folder(tmp_path, seqs) -> None:
     assert state(finished, {"state": "done"}, evaluated_under="monogs") == EVALUATE
     assert "'monogs'" in decide(run).why and "'egs'" in decide(run).why
     assert state(finished, {"state": "done"}, evaluated_under=None) == EVALUATE
+    (run_dir / "metrics.json").write_text('{"protocol": {"name": "egs"}, "ate": 5}')
+    assert decide(run).action == EVALUATE  # unreadable: evaluated again, as if missing
     # the method finished, its evaluation failed (or hit the time limit): kept like a failed
     # run; --retry-failed evaluates again without rerunning the method, --force reruns it
     for record in ({**ours, "state": "failed", "evaluation_error": "ValueError: x"},
