@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-import replica_testscene as scene
 
 from egs_bench.cli import main
 from egs_bench.color import linear_to_srgb
@@ -19,6 +18,7 @@ from egs_bench.datasets.replica import export_replica_layout, read_replica
 from egs_bench.datasets.sequence import Sequence
 from egs_bench.errors import ConfigError
 from egs_bench.geometry import Intrinsics, interpolate_pose
+from tests.helpers import replica_testscene as scene
 
 # Input camera (egs-bench convention) of the exported scene: small to keep the test fast.
 CAM = Intrinsics(fx=60.0, fy=60.0, cx=60.0, cy=36.0, width=120, height=72)

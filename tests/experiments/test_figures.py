@@ -4,7 +4,6 @@ zoomed crops and per-image PSNR (checked against an independent computation), fi
 import imageio.v3 as iio
 import numpy as np
 import pytest
-from sweep_fixtures import BAD, GOOD, make_sequence
 
 from egs_bench.cli import main
 from egs_bench.datasets.sequence import Sequence
@@ -20,6 +19,7 @@ from egs_bench.eval.figures import (
 )
 from egs_bench.eval.image_metrics import psnr_masked
 from egs_bench.eval.protocols import get_protocol
+from tests.helpers.sweep_fixtures import BAD, GOOD, make_sequence
 
 
 @pytest.fixture(scope="module")

@@ -28,9 +28,8 @@ def seq_path(tmp_path_factory) -> Path:
     """10 frames, 64x48, of the plane scene (30 fps, 15 ms exposures), with its ground truth
     replaced by a 6-DoF helix: the plane's straight line cannot be aligned (Umeyama needs a
     non-degenerate trajectory) and these tests only need poses, not matching images."""
-    from plane_scene import make_plane_sequence
-
     from egs_bench.geometry import read_tum, write_tum
+    from tests.helpers.plane_scene import make_plane_sequence
 
     path = make_plane_sequence(tmp_path_factory.mktemp("imp") / "plane", frames=10)
     stamps = read_tum(path / "groundtruth.txt").timestamps

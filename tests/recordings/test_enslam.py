@@ -11,7 +11,6 @@ import cv2
 import numpy as np
 import pytest
 import yaml
-from rig import T0_US, Rig, assert_events_match, calib_dict, event_camera_dict, make_rig
 
 import egs_bench.cli.recording_cmds  # noqa: F401  (registers the commands)
 from egs_bench.cli import main
@@ -22,6 +21,14 @@ from egs_bench.images import read_ldr_image
 from egs_bench.recordings import RecordingSpec, import_recording
 from egs_bench.recordings.enslam import import_enslam, read_davis_intrinsics, stamp_us
 from egs_bench.recordings.rosbag import BagFile
+from tests.helpers.rig import (
+    T0_US,
+    Rig,
+    assert_events_match,
+    calib_dict,
+    event_camera_dict,
+    make_rig,
+)
 
 DEPTH_TOPIC = "/camera/depth/image_rect_raw"
 

@@ -11,19 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-from bags import BagBuilder
 from numpy.lib.stride_tricks import sliding_window_view
-from rig import (
-    DEPTH_OFFSET_US,
-    MOCAP_OFFSET_US,
-    SCENE,
-    T0_US,
-    Rig,
-    assert_events_match,
-    calib_dict,
-    event_camera_dict,
-    make_rig,
-)
 from typer.testing import CliRunner
 
 import egs_bench.cli.eval_cmds  # noqa: F401  (registers the commands)
@@ -35,6 +23,18 @@ from egs_bench.datasets.sequence import Sequence
 from egs_bench.errors import InputError, OutputError
 from egs_bench.geometry import rotation_angle, write_tum
 from egs_bench.recordings import RecordingSpec, import_recording
+from tests.helpers.bags import BagBuilder
+from tests.helpers.rig import (
+    DEPTH_OFFSET_US,
+    MOCAP_OFFSET_US,
+    SCENE,
+    T0_US,
+    Rig,
+    assert_events_match,
+    calib_dict,
+    event_camera_dict,
+    make_rig,
+)
 
 PRESET = "davis-realsense"
 

@@ -159,12 +159,11 @@ def test_exit_codes_tell_usage_data_and_internal_errors_apart(tiny_sequence, mon
 
 def test_eventreplica_default_resize_keeps_the_aspect_ratio(tmp_path, capsys):
     """Case 6: a 4:3 input (7-Scenes-like) is no longer squashed to Replica's 459x260."""
-    from plane_scene import PlaneSource
-
     from egs_bench.color import linear_to_srgb8
     from egs_bench.datasets.replica import export_replica_layout
     from egs_bench.datasets.sequence import Sequence
     from egs_bench.geometry import Intrinsics
+    from tests.helpers.plane_scene import PlaneSource
 
     src = PlaneSource(width=160, height=120)
     frames = [src.render(t) for t in (0, 33_333, 66_667)]

@@ -11,7 +11,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from safety_helpers import QUICK_RUN
 
 from egs_bench.cli import main
 from egs_bench.datasets.sequence import Sequence
@@ -19,6 +18,7 @@ from egs_bench.errors import OutputError, UnwritableOutputError
 from egs_bench.fileio import atomic_path
 from egs_bench.images import read_ldr_image, write_ldr_image
 from egs_bench.outputs import prepare_output
+from tests.helpers.safety_helpers import QUICK_RUN
 
 
 def _cli(capsys, *argv: str | Path) -> tuple[int, str]:
@@ -233,7 +233,7 @@ def test_demo_rewrites_only_its_own_outputs(tmp_path, monkeypatch):
 
 
 def _plane(tmp_path: Path) -> Path:
-    from plane_scene import make_plane_sequence
+    from tests.helpers.plane_scene import make_plane_sequence
 
     return make_plane_sequence(tmp_path / "seq", frames=2)
 

@@ -13,13 +13,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from safety_helpers import QUICK_RUN, python_subprocess, wait_for
 
 from egs_bench.cli import main
 from egs_bench.errors import InputError, OutputError
 from egs_bench.eval.evaluate import evaluate_run
 from egs_bench.runs import folder as folder_mod
 from egs_bench.runs.folder import RunFolder
+from tests.helpers.safety_helpers import QUICK_RUN, python_subprocess, wait_for
 
 
 def _cli(capsys, *argv: str | Path) -> tuple[int, str]:
@@ -190,9 +190,8 @@ def test_a_signal_surfacing_inside_numba_exits_as_an_interruption(monkeypatch, c
     """numba turns a signal handler's exception into ``SystemError: ... returned a result with
     an exception set`` (the interruption as its cause): the CLI must exit 128 + 15 with one
     line, not report an internal error (70)."""
-    from interrupt_helpers import raise_sigterm_as_numba_does
-
     from egs_bench.datasets import synthetic
+    from tests.helpers.interrupt_helpers import raise_sigterm_as_numba_does
 
     monkeypatch.setattr(synthetic, "list_scenes", raise_sigterm_as_numba_does)
     code, err = _cli(capsys, "list-scenes")
