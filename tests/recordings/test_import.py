@@ -24,6 +24,7 @@ from egs_bench.errors import InputError, OutputError
 from egs_bench.geometry import rotation_angle, write_tum
 from egs_bench.recordings import RecordingSpec, import_recording
 from tests.helpers.bags import BagBuilder
+from tests.helpers.cli import assert_cli_error, run_cli
 from tests.helpers.rig import (
     DEPTH_OFFSET_US,
     MOCAP_OFFSET_US,
@@ -404,27 +405,35 @@ def test_run_and_eval_on_imported_rig(imported: Path, tmp_path: Path) -> None:
 
 
 # ------------------------------------------------------------------ CLI helpers
-def test_make_calib_from_kalibr_and_presets_listing(tmp_path: Path) -> None:
+def test_make_calib_from_kalibr_and_presets_listing(tmp_path: Path, capsys) -> None:
     kalibr = tmp_path / "camchain.yaml"
     kalibr.write_text(yaml.safe_dump({"cam0": {
         "camera_model": "pinhole", "intrinsics": [226.4, 226.2, 173.6, 133.7],
         "distortion_model": "equidistant", "distortion_coeffs": [-0.048, 0.011, -0.049, 0.016],
         "resolution": [346, 260], "rostopic": "/davis/left/image_raw"}}))
-    runner = CliRunner()
     out = tmp_path / "calib.yaml"
-    res = runner.invoke(app, ["make-calib", "--kalibr", str(kalibr), "--preset", "mvsec-indoor",
-                              "--out", str(out)])
-    assert res.exit_code == 0, res.output
+    code, _, err = run_cli(capsys, "make-calib", "--kalibr", kalibr, "--preset", "mvsec-indoor",
+                           "--out", out)
+    assert code == 0, err
     from egs_bench.recordings import load_calib
 
     calib = load_calib(out)
     assert calib.event_camera.model == "equidistant" and calib.depth_on_event_grid
     assert calib.depth_camera == calib.event_camera
     assert calib.event_camera.cx == 173.6
-    res = runner.invoke(app, ["make-calib", "--kalibr", str(kalibr), "--out", str(out)])
-    assert res.exit_code != 0 and out.is_file()  # never overwrites a calibration
-    res = runner.invoke(app, ["recording-presets"])
-    assert res.exit_code == 0
+    before = out.read_text()
+    code, _, err = run_cli(capsys, "make-calib", "--kalibr", kalibr, "--out", out)
+    assert_cli_error(code, err, 2, f"{out}: already exists", "--overwrite")
+    assert out.read_text() == before  # never overwrites a calibration
+    code, _, err = run_cli(capsys, "make-calib", "--kalibr", kalibr, "--preset", "mvsec",
+                           "--out", tmp_path / "c2.yaml")
+    assert_cli_error(code, err, 2, "unknown --preset 'mvsec'", "mvsec-indoor")
+    code, _, err = run_cli(capsys, "make-calib", "--kalibr", kalibr, "--ros-yaml", kalibr,
+                           "--out", tmp_path / "c2.yaml")
+    assert_cli_error(code, err, 2, "--kalibr or --ros-yaml, not both")
+    assert not (tmp_path / "c2.yaml").exists()
+    code, out_text, _ = run_cli(capsys, "recording-presets")
+    assert code == 0
     for name in ("davis-realsense", "mvsec-indoor", "vector-small", "/davis/left/depth_image_raw",
                  "events_on_frame_sensor: false"):
-        assert name in res.output
+        assert name in out_text
