@@ -11,11 +11,11 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from egs_bench.cli import main
 from egs_bench.errors import ConfigError, InputError
 from egs_bench.eval.ate import ate_from_files, check_argument_order, file_role_hint
 from egs_bench.eval.rpe import compute_rpe, rpe_from_files, standard_rpe
 from egs_bench.geometry import Trajectory, pose_from_tq, write_tum
+from tests.helpers.cli import assert_cli_error, run_cli
 
 PAIRS = [("freiburg1_xyz-rgbdslam.txt", "freiburg1_xyz-groundtruth.txt"),
          ("fr2_desk_ORB.txt", "fr2_desk_groundtruth.txt")]
@@ -183,35 +183,28 @@ def test_rpe_bad_options_and_short_trajectories(tmp_path) -> None:
     assert "no pose pair 1 meters apart" in summary["per_metre"]["note"]
 
 
-def _cli(capsys, *argv: str) -> tuple[int, str, str]:
-    code = main(list(argv))
-    out = capsys.readouterr()
-    return code, out.out, out.err
-
-
 def test_cli_rpe_and_ate_take_gt_first(shared_data, tmp_path, capsys) -> None:
     d = shared_data / "trajectories"
     gt, est = d / "freiburg1_xyz-groundtruth.txt", d / "freiburg1_xyz-rgbdslam.txt"
     ref = rpe_from_files(est, gt, relation="angle_deg", delta=1, delta_unit="m")
-    code, out, _ = _cli(capsys, "rpe", str(gt), str(est), "-r", "angle_deg", "-d", "1", "-u",
-                        "m")
+    code, out, _ = run_cli(capsys, "rpe", str(gt), str(est), "-r", "angle_deg", "-d", "1", "-u",
+                           "m")
     assert code == 0 and f"{ref.rmse:.6f}" in out and "8 pairs of 785 matched poses" in out
-    code, out, _ = _cli(capsys, "ate", str(gt), str(est))
+    code, out, _ = run_cli(capsys, "ate", str(gt), str(est))
     assert code == 0 and "0.013470" in out and f"reference {gt}" in out
     # the old order fails with one clear line ...
-    code, _, err = _cli(capsys, "ate", str(est), str(gt), "--align", "sim3")
-    assert code == 2 and len(err.strip().splitlines()) == 1
-    assert "takes GT EST (evo's order)" in err and "looks like ground truth" in err
-    assert "--est-first" in err
+    code, _, err = run_cli(capsys, "ate", str(est), str(gt), "--align", "sim3")
+    assert_cli_error(code, err, 2, "takes GT EST (evo's order)", "looks like ground truth",
+                     "--est-first")
     # ... or, with the explicit flag, gives exactly the numbers of the new order
     sim3 = ate_from_files(est, gt, align="sim3")
-    code, out, _ = _cli(capsys, "ate", "--est-first", str(est), str(gt), "--align", "sim3")
+    code, out, _ = run_cli(capsys, "ate", "--est-first", str(est), str(gt), "--align", "sim3")
     assert code == 0 and f"{sim3.rmse:.6f}" in out and f"scale: {sim3.scale:.6f}" in out
     # why the order matters: swapping the roles changes Sim(3) ATE (not SE(3) ATE)
     swapped = ate_from_files(gt, est, align="sim3")
     assert abs(swapped.rmse - sim3.rmse) > 1e-4
-    code, _, err = _cli(capsys, "rpe", str(est), str(gt))
-    assert code == 2 and "egs-bench rpe takes GT EST" in err
+    code, _, err = run_cli(capsys, "rpe", str(est), str(gt))
+    assert_cli_error(code, err, 2, "egs-bench rpe takes GT EST", "--est-first")
 
 
 def test_file_role_hints(tmp_path) -> None:

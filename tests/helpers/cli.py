@@ -21,14 +21,17 @@ def run_cli(capsys: pytest.CaptureFixture[str], *argv: str | Path) -> tuple[int,
 
 def assert_cli_error(code: int, err: str, expected_code: int, *fragments: str | Path) -> str:
     """Assert that a command failed with ``expected_code`` (``egs_bench.errors``: 2 usage, 3 data,
-    70 internal) and that its stderr is exactly one ``error: ...`` line (``internal error: ...``
-    for 70) holding every fragment: the file or option it names, the problem. Returns the line."""
+    70 internal) and reported it as one ``error: ...`` line (``internal error: ...`` for 70),
+    the last of stderr, holding every fragment: the file or option it names, the problem.
+    Progress bars may come before it; a traceback or a second error line may not. Returns the
+    line."""
     assert fragments, "name the file or option the message must hold"
     assert code == expected_code, f"exit code {code}, expected {expected_code}; stderr:\n{err}"
-    lines = err.splitlines()
-    assert len(lines) == 1, f"expected one line on stderr, got {len(lines)}:\n{err}"
+    *before, line = err.rstrip("\n").split("\n")
     label = "internal error: " if expected_code == EXIT_INTERNAL else "error: "
-    assert lines[0].startswith(label), lines[0]
-    missing = [str(f) for f in fragments if str(f) not in lines[0]]
-    assert not missing, f"{missing} not in {lines[0]!r}"
-    return lines[0]
+    assert line.startswith(label), f"the last line of stderr is not {label!r}:\n{err}"
+    assert "Traceback" not in err, err
+    assert not [b for b in before if b.startswith(("error:", "internal error:"))], err
+    missing = [str(f) for f in fragments if str(f) not in line]
+    assert not missing, f"{missing} not in {line!r}"
+    return line

@@ -19,6 +19,7 @@ from egs_bench.errors import ConfigError, InputError, OutputError
 from egs_bench.eval.evaluate import evaluate_run
 from egs_bench.geometry import invert_pose, pose_from_tq, pose_to_tq
 from egs_bench.interop.export import export_sequence
+from tests.helpers.interop_consumers import monogs_tum_parser, retimed_copy
 
 pytestmark = pytest.mark.filterwarnings("ignore:Input line .* contained no data:UserWarning")
 
@@ -121,9 +122,7 @@ def test_orbslam2_keyframe_file_alone_is_marked(seq: Sequence, export: Path,
 
 
 def test_retimed_export_maps_back_to_sequence_stamps(seq_path: Path, tmp_path: Path) -> None:
-    from test_interop_export import _retimed_copy
-
-    fast = Sequence.open(_retimed_copy(seq_path, tmp_path / "fast", 20_000))
+    fast = Sequence.open(retimed_copy(seq_path, tmp_path / "fast", 20_000))
     exp = export_sequence(fast, tmp_path / "exp", fmt="tum-rgbd")
     assert exp.retimed
     t_export = np.round(fast.timestamps_s[0] + np.arange(len(fast)) / 30, 6)
@@ -226,9 +225,7 @@ def test_monogs_result_folder(seq: Sequence, export: Path, tmp_path: Path) -> No
 def test_monogs_uids_follow_its_frame_dropping(seq_path: Path, tmp_path: Path) -> None:
     """Exported without retiming at 50 fps, MonoGS keeps frames 0, 2, 4, ...: uid k is frame
     2k (its TUMParser's 1/32 s rule)."""
-    from test_interop_export import _retimed_copy, monogs_tum_parser
-
-    fast = Sequence.open(_retimed_copy(seq_path, tmp_path / "fast", 20_000))
+    fast = Sequence.open(retimed_copy(seq_path, tmp_path / "fast", 20_000))
     exp = export_sequence(fast, tmp_path / "exp", fmt="tum-rgbd", retime="never").path
     kept_by_monogs = len(monogs_tum_parser(str(exp))[0])
     kept = monogs_kept_frames(fast.timestamps_s)
