@@ -229,13 +229,15 @@ def test_from_runs_tabulates_earlier_invocations_together(tmp_path: Path) -> Non
     first.loc[0, "ate_cm"] = 2.5
     first.to_csv(tmp_path / "a.csv", index=False)
     (tmp_path / "c.csv").write_text("sequence,method\ns,egs\n")
-    for args, message in [(("--from-runs", "a.csv", "--from-runs", "b.csv"),
-                           "s/egs/seed0: a.csv and b.csv give it different numbers"),
-                          (("--from-runs", "c.csv"), "c.csv: not a runs.csv of this benchmark"),
-                          (("--from-runs", "nosuch.csv"), "nosuch.csv: cannot read it"),
-                          ((), "give --seq (run the benchmark) or --from-runs")]:
+    # a bad input file exits 1 (sys.exit with the message), a usage error 2 (argparse)
+    for args, code, message in [(("--from-runs", "a.csv", "--from-runs", "b.csv"), 1,
+                                 "s/egs/seed0: a.csv and b.csv give it different numbers"),
+                                (("--from-runs", "c.csv"), 1,
+                                 "c.csv: not a runs.csv of this benchmark"),
+                                (("--from-runs", "nosuch.csv"), 1, "nosuch.csv: cannot read it"),
+                                ((), 2, "give --seq (run the benchmark) or --from-runs")]:
         result = bench(*args)
-        assert result.returncode != 0, args
+        assert result.returncode == code, (args, result.stderr)
         last = result.stderr.strip().splitlines()[-1]
         assert last.startswith("bench_slam_accuracy.py: error: ") and message in last, last
 

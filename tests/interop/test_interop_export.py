@@ -22,6 +22,7 @@ from PIL import Image
 from egs_bench.datasets.sequence import Sequence
 from egs_bench.errors import InputError, OutputError
 from egs_bench.interop.export import export_sequence, read_export_index
+from tests.helpers.cli import assert_cli_error
 from tests.helpers.interop_consumers import (
     monogs_replica_parser,
     monogs_tum_parser,
@@ -212,13 +213,14 @@ def test_output_safety(seq: Sequence, tmp_path: Path) -> None:
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]  # no temp leftovers
 
 
-def test_cli_export_and_errors(tiny_sequence: Path, tmp_path: Path) -> None:
+def test_cli_export_and_errors(tiny_sequence: Path, tmp_path: Path, capsys) -> None:
     from egs_bench.cli import main
 
     assert main(["export", str(tiny_sequence), str(tmp_path / "o"), "--format", "tum-rgbd",
                  "--quiet"]) == 0
     assert (tmp_path / "o" / "monogs_rgbd.yaml").is_file()
-    assert main(["export", str(tiny_sequence), str(tmp_path / "o2"), "--format", "kitti"]) == 2
+    code = main(["export", str(tiny_sequence), str(tmp_path / "o2"), "--format", "kitti"])
+    assert_cli_error(code, capsys.readouterr().err, 2, "--format", "kitti")
     assert not (tmp_path / "o2").exists()
 
 
@@ -263,8 +265,6 @@ def test_cli_export_of_a_truncated_frame(tiny_sequence: Path, tmp_path: Path, ca
     from egs_bench.cli import main
 
     src = _damaged_copy(tiny_sequence, tmp_path / "seq", "rgb", "truncated")
-    assert main(["export", str(src), str(tmp_path / "o"), "--format", "tum-rgbd",
-                 "--quiet"]) == 3
-    err = capsys.readouterr().err.strip()
-    assert len(err.splitlines()) == 1 and "000002.png" in err
+    code = main(["export", str(src), str(tmp_path / "o"), "--format", "tum-rgbd", "--quiet"])
+    assert_cli_error(code, capsys.readouterr().err, 3, src / "rgb" / "000002.png")
     assert not (tmp_path / "o").exists()

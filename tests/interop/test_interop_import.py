@@ -19,6 +19,7 @@ from egs_bench.errors import ConfigError, InputError, OutputError
 from egs_bench.eval.evaluate import evaluate_run
 from egs_bench.geometry import invert_pose, pose_from_tq, pose_to_tq
 from egs_bench.interop.export import export_sequence
+from tests.helpers.cli import assert_cli_error
 from tests.helpers.interop_consumers import monogs_tum_parser, retimed_copy
 
 pytestmark = pytest.mark.filterwarnings("ignore:Input line .* contained no data:UserWarning")
@@ -384,9 +385,9 @@ def test_cli_import_run(seq: Sequence, export: Path, tmp_path: Path, capsys) -> 
     assert "imported ORB-SLAM2 on plane" in out and "poses: keyframes" in out
     assert main(["eval", str(tmp_path / "run")]) == 0
     assert "keyframes poses only" in capsys.readouterr().out
-    assert main(["import-run", str(tmp_path / "orb"), str(tmp_path / "run2"), "--from",
-                 "tum"]) == 2
-    assert "--from tum needs --method and --sequence" in capsys.readouterr().err
+    code = main(["import-run", str(tmp_path / "orb"), str(tmp_path / "run2"), "--from",
+                 "tum"])
+    assert_cli_error(code, capsys.readouterr().err, 2, "--from tum needs --method and --sequence")
 
 
 # ---------------------------------------------------------------- validation at import (issue 36)
@@ -447,9 +448,7 @@ def test_tum_import_validates_as_eval_would(seq: Sequence, tmp_path: Path, capsy
     for argv, message in cases:
         code = main(["import-run", *argv, str(out), "--from", "tum", "-m", "ext", "-s",
                      "plane"])
-        err = capsys.readouterr().err
-        assert code == 3, (argv, err)
-        assert message in err and len(err.strip().splitlines()) == 1, (argv, err)
+        assert_cli_error(code, capsys.readouterr().err, 3, message)
         assert not out.exists() and _no_leftovers(tmp_path), argv
     # the fixed inputs import into the same folder without --overwrite
     run = import_tum_run(est, out, method="ext", sequence_name="plane",
@@ -469,10 +468,9 @@ def test_external_import_with_a_bad_render_leaves_nothing(seq: Sequence, export:
     good = jpg.read_bytes()
     _truncate(jpg)
     out = tmp_path / "run"
-    assert main(["import-run", str(tmp_path / "ps"), str(out), "--from", "photoslam",
-                 "--export", str(export)]) == 3
-    err = capsys.readouterr().err
-    assert "30000_1.jpg" in err and len(err.strip().splitlines()) == 1
+    code = main(["import-run", str(tmp_path / "ps"), str(out), "--from", "photoslam",
+                 "--export", str(export)])
+    assert_cli_error(code, capsys.readouterr().err, 3, jpg)
     assert not out.exists() and _no_leftovers(tmp_path)
     jpg.write_bytes(good)
     # a failure after the run folder was created (disk full while writing a render)
