@@ -16,9 +16,8 @@ from egs_bench.eval.ate import ate_from_files, check_argument_order, file_role_h
 from egs_bench.eval.rpe import compute_rpe, rpe_from_files, standard_rpe
 from egs_bench.geometry import Trajectory, pose_from_tq, write_tum
 from tests.helpers.cli import assert_cli_error, run_cli
+from tests.helpers.trajectory_pairs import PAIRS, REAL, SYNTHETIC, pair_paths
 
-PAIRS = [("freiburg1_xyz-rgbdslam.txt", "freiburg1_xyz-groundtruth.txt"),
-         ("fr2_desk_ORB.txt", "fr2_desk_groundtruth.txt")]
 # (our keyword options, the same options for evo_rpe)
 OPTIONS = [
     ({"relation": "trans_part"}, ["-r", "trans_part"]),  # per frame, translation
@@ -59,22 +58,22 @@ def _assert_same(ours, ref_zip: zipfile.ZipFile) -> None:
 
 @pytest.mark.parametrize(("est_name", "gt_name"), PAIRS)
 @pytest.mark.parametrize(("ours", "evo_args"), OPTIONS)
-def test_rpe_equals_evo_rpe(shared_data, tmp_path, est_name, gt_name, ours, evo_args) -> None:
-    d = shared_data / "trajectories"
-    with _evo_rpe_function(d / gt_name, d / est_name, evo_args, tmp_path / "res.zip") as ref:
-        _assert_same(rpe_from_files(d / est_name, d / gt_name, **ours), ref)
+def test_rpe_equals_evo_rpe(request, tmp_path, est_name, gt_name, ours, evo_args) -> None:
+    est, gt = pair_paths(request, tmp_path, est_name, gt_name)
+    with _evo_rpe_function(gt, est, evo_args, tmp_path / "res.zip") as ref:
+        _assert_same(rpe_from_files(est, gt, **ours), ref)
 
 
-def test_rpe_equals_evo_rpe_executable(shared_data, tmp_path) -> None:
-    d = shared_data / "trajectories"
+@pytest.mark.parametrize(("est_name", "gt_name"), [SYNTHETIC, REAL[1]])
+def test_rpe_equals_evo_rpe_executable(request, tmp_path, est_name, gt_name) -> None:
+    est, gt = pair_paths(request, tmp_path, est_name, gt_name)
     evo_rpe = Path(sys.executable).parent / "evo_rpe"
     out = tmp_path / "res.zip"
-    subprocess.run([str(evo_rpe), "tum", str(d / PAIRS[1][1]), str(d / PAIRS[1][0]), "-r",
-                    "angle_deg", "-d", "1", "-u", "m", "--no_warnings", "--save_results",
-                    str(out)], check=True, capture_output=True)
+    subprocess.run([str(evo_rpe), "tum", str(gt), str(est), "-r", "angle_deg", "-d", "1", "-u",
+                    "m", "--no_warnings", "--save_results", str(out)], check=True,
+                   capture_output=True)
     with zipfile.ZipFile(out) as ref:
-        _assert_same(rpe_from_files(d / PAIRS[1][0], d / PAIRS[1][1], relation="angle_deg",
-                                    delta=1, delta_unit="m"), ref)
+        _assert_same(rpe_from_files(est, gt, relation="angle_deg", delta=1, delta_unit="m"), ref)
 
 
 def _wiggle(n: int = 120) -> Trajectory:
