@@ -11,6 +11,7 @@ from types import ModuleType
 
 import numpy as np
 import pandas as pd
+import pytest
 
 from egs_bench.provenance import code_revision
 from tests.helpers.sweep_fixtures import FAKE_EGS_PATH, FAKE_MONOGS_PATH, make_sequence, worker_env
@@ -25,6 +26,7 @@ def _bench(*extra: str, cwd: Path) -> subprocess.CompletedProcess:
                           timeout=300)
 
 
+@pytest.mark.slow
 def test_status_run_and_resume(tmp_path: Path, monkeypatch) -> None:
     worker_env(monkeypatch)
     make_sequence(tmp_path / "data", "sa", 8, 0)
@@ -145,6 +147,7 @@ def test_seed_intervals_match_the_two_seed_case() -> None:
         "PSNR [-1.00, +1.00] dB"]
 
 
+@pytest.mark.slow
 def test_numbers_come_only_from_runs_of_this_configuration(tmp_path: Path, monkeypatch) -> None:
     """Run folders made with another configuration (here another frame limit; the folder names
     are the same) are reported stale, not tabulated under the new label; ``--status``
@@ -170,6 +173,7 @@ def test_numbers_come_only_from_runs_of_this_configuration(tmp_path: Path, monke
     assert runs.loc["monogs", "ate_cm"] > 0
 
 
+@pytest.mark.slow
 def test_bad_arguments_get_one_line(tmp_path: Path, monkeypatch) -> None:
     worker_env(monkeypatch)
     make_sequence(tmp_path / "data", "sa", 8, 0)
@@ -202,6 +206,7 @@ def test_bad_arguments_get_one_line(tmp_path: Path, monkeypatch) -> None:
     assert sorted(p.name for p in (tmp_path / "data").iterdir()) == ["sa"]
 
 
+@pytest.mark.slow
 def test_from_runs_tabulates_earlier_invocations_together(tmp_path: Path) -> None:
     """Two invocations' runs.csv (seeds run apart, one run in both) give one table and one
     summary; unfinished rows are left out; a run the files disagree on, a file that is not a

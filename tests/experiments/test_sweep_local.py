@@ -119,6 +119,7 @@ def _sweep_stopped_after_the_method(sweep_dir: Path) -> tuple[Path, subprocess.P
     return sweep, proc, run_dir
 
 
+@pytest.mark.slow
 def test_run_interrupted_after_the_method_finished_is_only_evaluated(sweep_dir) -> None:
     """SIGTERM after the method marked its folder done (before the evaluation): the next
     invocation evaluates the kept outputs instead of rerunning the method."""
@@ -155,6 +156,7 @@ def test_repeated_sigterms_do_not_leave_the_run_recorded_running(sweep_dir) -> N
     assert json.loads((run_dir / "sweep.json").read_text())["state"] == "interrupted"
 
 
+@pytest.mark.slow
 def test_sweep_failures_conflicts_and_retries(sweep_dir, monkeypatch) -> None:
     data = {"methods": [GOOD_PATH], "sequences": ["data/sa"], "seeds": [0, 1, 2],
             "local": {"jobs": 2}, "out": "out"}
@@ -200,6 +202,7 @@ def test_sweep_failures_conflicts_and_retries(sweep_dir, monkeypatch) -> None:
     assert (foreign / "notes.txt").read_text() == "a user's file"
 
 
+@pytest.mark.slow
 def test_sweep_time_limit_and_dry_run(sweep_dir, monkeypatch) -> None:
     sweep = _write(sweep_dir / "t.yaml", {"methods": [GOOD_PATH],
                                           "sequences": ["data/sa"], "seeds": [0],
