@@ -9,7 +9,7 @@ export EGS_BENCH_CACHE := $(CURDIR)/.cache/egs_bench
 export MPLBACKEND := Agg
 export OMP_WAIT_POLICY := PASSIVE
 
-.PHONY: setup demo test lint bench regress regress-baseline gpu-check gpu-accuracy clean
+.PHONY: setup demo test test-fast lint bench regress regress-baseline gpu-check gpu-accuracy clean
 
 setup: $(STAMP)
 
@@ -32,8 +32,13 @@ lint: setup
 	$(BIN)/ruff check egs_bench tests benchmarks
 	$(BIN)/mypy
 
+# The full suite (CI runs it).
 test: setup lint
 	$(BIN)/python -m pytest -q
+
+# The fast tier while working: every test but the `slow` end-to-end ones, on two processes.
+test-fast: setup
+	$(BIN)/python -m pytest -q -m "not slow" -n 2
 
 bench: setup
 	$(BIN)/python benchmarks/run_all.py

@@ -1,6 +1,6 @@
 """EventReplica generator speed and interpolation quality at 448x256.
 
-Input: the analytic textured room of the tests (``tests/datasets/replica_testscene.py``,
+Input: the analytic textured room of the tests (``tests/helpers/replica_testscene.py``,
 photographs from scikit-image on the walls, a floating box for occlusions) rendered at Replica's
 1200x680 with Replica's intrinsics, exported to the NICE-SLAM layout as JPEG + 16-bit depth, as
 a real Replica scene would be. Per-frame camera motion: about 2 cm and 1 degree (roughly 5-8 px
@@ -30,8 +30,7 @@ from pathlib import Path
 import numpy as np
 from tabulate import tabulate
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "datasets"))
-import replica_testscene as scene
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # this checkout's tests package
 
 from egs_bench.color import linear_to_srgb
 from egs_bench.datasets.eventreplica import (
@@ -43,6 +42,7 @@ from egs_bench.datasets.eventreplica import (
 from egs_bench.datasets.replica import export_replica_layout, read_replica
 from egs_bench.datasets.sequence import Sequence
 from egs_bench.geometry import Intrinsics, interpolate_pose
+from tests.helpers import replica_testscene as scene
 
 REPLICA = Intrinsics(600.0, 600.0, 600.0, 340.0, 1200, 680)  # egs-bench convention
 

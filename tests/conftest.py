@@ -8,6 +8,8 @@ from pathlib import Path
 
 import pytest
 
+from tests.helpers.plane_scene import make_plane_sequence
+
 REPO_ROOT = Path(__file__).resolve().parents[1]
 SHARED = Path(os.environ.get("EGS_BENCH_SHARED", REPO_ROOT.parent / "shared"))
 os.environ.setdefault("NUMBA_CACHE_DIR", str(REPO_ROOT / ".cache" / "numba"))
@@ -24,8 +26,6 @@ def shared_data() -> Path:
         pytest.skip("../shared/data is not available")
     return path
 
-
-from plane_scene import make_plane_sequence  # noqa: E402 (tests/ is on sys.path)
 
 
 @pytest.fixture(scope="session")

@@ -8,7 +8,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from plane_scene import make_plane_sequence  # tests/ is on sys.path (its conftest.py)
 
 from egs_bench.baselines.edi import (
     EdiConfig,
@@ -20,6 +19,7 @@ from egs_bench.baselines.edi import (
     latent_from_blur,
 )
 from egs_bench.errors import ConfigError, InputError
+from tests.helpers.plane_scene import make_plane_sequence
 
 T0, T1 = 1_000_000, 1_020_000  # a 20 ms exposure, microseconds
 

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-import replica_testscene as scene
 
 from egs_bench.cli import main
 from egs_bench.color import linear_to_srgb
@@ -19,6 +18,8 @@ from egs_bench.datasets.replica import export_replica_layout, read_replica
 from egs_bench.datasets.sequence import Sequence
 from egs_bench.errors import ConfigError
 from egs_bench.geometry import Intrinsics, interpolate_pose
+from tests.helpers import replica_testscene as scene
+from tests.helpers.cli import assert_cli_error
 
 # Input camera (egs-bench convention) of the exported scene: small to keep the test fast.
 CAM = Intrinsics(fx=60.0, fy=60.0, cx=60.0, cy=36.0, width=120, height=72)
@@ -146,13 +147,13 @@ def test_cli_bad_options(replica_dir, tmp_path, capsys, args, message):
     code = main(["make-eventreplica", "--input", str(root / "sceneA"), "--out",
                  str(tmp_path / "bad"), "--resize", "none", "--width", "112", "--height", "64",
                  "--no-progress", *args])
-    assert code == 2
-    assert message in capsys.readouterr().err
+    assert_cli_error(code, capsys.readouterr().err, 2, message)
     assert not (tmp_path / "bad").exists()
 
 
 def test_cli_bad_input_names_the_file(tmp_path, capsys):
     code = main(["make-eventreplica", "--input", str(tmp_path / "missing"), "--out",
                  str(tmp_path / "o")])
-    assert code == 3  # a data error (exit 2 is for usage errors)
-    assert f"{tmp_path / 'missing'}: scene folder does not exist" in capsys.readouterr().err
+    # a data error (exit 2 is for usage errors)
+    assert_cli_error(code, capsys.readouterr().err, 3,
+                     f"{tmp_path / 'missing'}: scene folder does not exist")

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-import replica_testscene as scene
 
 from egs_bench.datasets.eventreplica import (
     DepthWarpInterpolator,
@@ -18,6 +17,7 @@ from egs_bench.datasets.eventreplica import (
 )
 from egs_bench.errors import ConfigError
 from egs_bench.geometry import Intrinsics, interpolate_pose
+from tests.helpers import replica_testscene as scene
 
 INTR = Intrinsics(fx=160.0, fy=160.0, cx=128.0, cy=80.0, width=256, height=160)
 

@@ -10,6 +10,7 @@ from PIL import Image
 from egs_bench.cli import main
 from egs_bench.datasets.inspect import blur_extent_px, event_map_image, sequence_summary
 from egs_bench.datasets.sequence import Sequence
+from tests.helpers.cli import assert_cli_error
 
 
 def test_summary_values(tiny_sequence: Path) -> None:
@@ -37,11 +38,10 @@ def test_info_and_show_commands(tiny_sequence: Path, tmp_path: Path, capsys) -> 
     assert main(["show", str(tiny_sequence), "--frame", "1", "--out", str(out)]) == 0
     with Image.open(out) as img:
         assert img.size[0] > 300
-    assert main(["show", str(tiny_sequence), "--frame", "9", "--out", str(out)]) == 2
-    err = capsys.readouterr().err
-    assert "out of range" in err and "Traceback" not in err
-    assert main(["show", str(tiny_sequence), "--frame", "2", "--out", str(out)]) == 2
-    assert "already exists; pass --overwrite" in capsys.readouterr().err
+    code = main(["show", str(tiny_sequence), "--frame", "9", "--out", str(out)])
+    assert_cli_error(code, capsys.readouterr().err, 2, "--frame", "out of range")
+    code = main(["show", str(tiny_sequence), "--frame", "2", "--out", str(out)])
+    assert_cli_error(code, capsys.readouterr().err, 2, f"{out}: already exists; pass --overwrite")
     before = out.read_bytes()
     assert main(["show", str(tiny_sequence), "--frame", "2", "--out", str(out),
                  "--overwrite"]) == 0
@@ -49,6 +49,6 @@ def test_info_and_show_commands(tiny_sequence: Path, tmp_path: Path, capsys) -> 
 
 
 def test_info_bad_path_is_one_line(tmp_path: Path, capsys) -> None:
-    assert main(["info", str(tmp_path / "missing")]) == 3  # a data error, not a usage error
-    err = capsys.readouterr().err.strip()
-    assert err.count("\n") == 0 and "no such sequence folder" in err
+    code = main(["info", str(tmp_path / "missing")])  # a data error, not a usage error
+    assert_cli_error(code, capsys.readouterr().err, 3,
+                     f"{tmp_path / 'missing'}: no such sequence folder")

@@ -7,13 +7,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from plane_scene import PlaneSource, make_plane_sequence
 
 from egs_bench.color import LdrResponse, linear_to_srgb, srgb_to_linear
 from egs_bench.datasets.esim import log_luma
 from egs_bench.datasets.pipeline import SamplingConfig, generate_sequence, max_flow_px
 from egs_bench.datasets.sequence import Sequence
 from egs_bench.errors import ConfigError, OutputError
+from tests.helpers.plane_scene import PlaneSource, make_plane_sequence
 
 
 def test_blur_sharp_depth_against_direct_renders(tmp_path: Path) -> None:

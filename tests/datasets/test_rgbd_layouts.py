@@ -25,6 +25,7 @@ from egs_bench.datasets.sequence import Sequence
 from egs_bench.errors import ConfigError, InputError
 from egs_bench.geometry import Intrinsics, read_tum, write_tum
 from egs_bench.images import write_depth_png, write_ldr_image
+from tests.helpers.cli import assert_cli_error
 
 
 def tum_associate_oracle(first: np.ndarray, second: np.ndarray, max_difference: float
@@ -324,10 +325,7 @@ def test_bad_tum_input_is_one_line_naming_the_file(tum_export, tmp_path, capsys,
     code = main(["make-eventreplica", "--layout", "tum-rgbd", "--input", str(tum_export),
                  "--out", str(tmp_path / "out"), "--width", "48", "--height", "32",
                  "--no-progress", *extra])
-    err = capsys.readouterr().err.strip()
-    assert code == 3, err
-    assert err.startswith(f"error: {named}: ") and message in err
-    assert len(err.splitlines()) == 1
+    assert_cli_error(code, capsys.readouterr().err, 3, f"{named}: ", message)
     assert not (tmp_path / "out").exists()
 
 
@@ -353,10 +351,7 @@ def test_bad_generic_input_is_one_line_naming_the_file(tiny_sequence, tmp_path, 
     args = [a for k, v in paths.items() for a in (k, str(v))]
     code = main(["make-eventreplica", "--layout", "generic", *args, "--out",
                  str(tmp_path / "out"), "--width", "48", "--height", "32", "--no-progress"])
-    err = capsys.readouterr().err.strip()
-    assert code == 3, err
-    assert err.startswith(f"error: {paths[named]}: ") and message in err
-    assert len(err.splitlines()) == 1
+    assert_cli_error(code, capsys.readouterr().err, 3, f"{paths[named]}: ", message)
 
 
 @pytest.mark.parametrize(("args", "message"), [
@@ -380,9 +375,7 @@ def test_bad_generic_input_is_one_line_naming_the_file(tiny_sequence, tmp_path, 
 def test_bad_layout_options_are_one_line(tmp_path, capsys, monkeypatch, args, message):
     monkeypatch.chdir(tmp_path)
     code = main(["make-eventreplica", "--out", str(tmp_path / "out"), "--no-progress", *args])
-    err = capsys.readouterr().err.strip()
-    assert code == 2, err
-    assert message in err and len(err.splitlines()) == 1
+    assert_cli_error(code, capsys.readouterr().err, 2, message)
 
 
 def test_rgbd_input_validates_and_lists_its_inputs(tmp_path):
@@ -405,6 +398,5 @@ def test_output_may_not_replace_the_input_layout(tum_export, capsys, where):
     code = main(["make-eventreplica", "--layout", "tum-rgbd", "--input", str(tum_export),
                  "--out", str(out), "--overwrite", "--width", "48", "--height", "32",
                  "--no-progress"])
-    err = capsys.readouterr().err.strip()
-    assert code == 2 and len(err.splitlines()) == 1 and str(out) in err
+    assert_cli_error(code, capsys.readouterr().err, 2, out)
     assert sorted(p.relative_to(tum_export) for p in tum_export.rglob("*")) == before

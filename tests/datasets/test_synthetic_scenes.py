@@ -27,6 +27,7 @@ from egs_bench.geometry import (
     rotation_angle,
     write_tum,
 )
+from tests.helpers.cli import assert_cli_error
 
 
 def test_scene_registry() -> None:
@@ -210,8 +211,8 @@ def test_cli_list_scenes_and_errors(capsys, tmp_path: Path) -> None:
     printed = capsys.readouterr().out
     for name in SCENES:
         assert name in printed
-    assert cli_main(["make-synthetic", "--scene", "nope", "--out", str(tmp_path / "x")]) == 2
-    assert "unknown scene" in capsys.readouterr().err
+    code = cli_main(["make-synthetic", "--scene", "nope", "--out", str(tmp_path / "x")])
+    assert_cli_error(code, capsys.readouterr().err, 2, "unknown scene 'nope'")
     assert cli_main(["make-synthetic", "--scene", "studio", "--out", str(tmp_path / "s"),
                      "--frames", "2", "--width", "32", "--height", "20", "--supersample", "1",
                      "--no-progress"]) == 0

@@ -21,8 +21,7 @@ def _isolated_eval_env(tmp_path_factory, monkeypatch) -> None:
 @pytest.fixture(scope="session")
 def eval_sequence(tmp_path_factory) -> Path:
     """A 12-frame 64x48 canonical sequence with known poses and images (no events); see
-    ``eval_fixtures.make_sequence``. ``tests/eval`` is on ``sys.path`` because pytest inserts
-    the folder of every test module and conftest that is not inside a package."""
-    from eval_fixtures import make_sequence
+    ``tests.helpers.eval_fixtures.make_sequence``."""
+    from tests.helpers.eval_fixtures import make_sequence
 
     return make_sequence(tmp_path_factory.mktemp("seqs"))

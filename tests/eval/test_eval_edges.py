@@ -7,7 +7,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from eval_fixtures import make_run
 
 from egs_bench.cli import main
 from egs_bench.errors import InputError
@@ -15,6 +14,8 @@ from egs_bench.eval.ate import compute_ate, merge_duplicate_stamps, trajectory_a
 from egs_bench.eval.evaluate import evaluate_run
 from egs_bench.eval.rpe import trajectory_rpe
 from egs_bench.geometry import Trajectory, read_tum, write_tum
+from tests.helpers.cli import assert_cli_error
+from tests.helpers.eval_fixtures import make_run
 
 GT_NAME, EST_NAME = "freiburg1_xyz-groundtruth.txt", "freiburg1_xyz-rgbdslam.txt"
 
@@ -104,14 +105,16 @@ def test_eval_of_a_run_with_a_repeated_stamp(tmp_path, eval_sequence) -> None:
     assert not any(str(tmp_path) in n for n in dup["notes"])  # metrics.json holds no paths
 
 
-def test_monogs_protocol_with_too_few_keyframes_names_keyframes_file(tmp_path,
-                                                                      eval_sequence) -> None:
+def test_monogs_protocol_with_too_few_keyframes_names_keyframes_file(tmp_path, eval_sequence,
+                                                                      capsys) -> None:
     run = make_run(tmp_path, eval_sequence, keyframes=(0,))
     with pytest.raises(InputError, match=r"keyframes\.txt: lists 1 keyframe\(s\); protocol "
                                          r"'monogs' evaluates ATE on keyframes") as err:
         evaluate_run(run.path, "monogs", write=False)
     assert "groundtruth" not in str(err.value)
     # the same with a trajectory-only run (the estimate is cut to the keyframes)
-    assert main(["eval", str(run.path), "--protocol", "monogs"]) == 3
+    code = main(["eval", str(run.path), "--protocol", "monogs"])
+    assert_cli_error(code, capsys.readouterr().err, 3, run.path / "keyframes.txt",
+                     "protocol 'monogs' evaluates ATE on keyframes")
     json.dumps(evaluate_run(run.path, "egs", write=False))  # the egs protocol still scores it
     assert compute_ate(run.read_trajectory(), run.read_trajectory()).rmse < 1e-9

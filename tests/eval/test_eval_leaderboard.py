@@ -248,10 +248,9 @@ def test_leaderboard_latex_compiles_without_overflow(tmp_path) -> None:
 def test_a_signal_surfacing_inside_an_evaluation_stops_the_leaderboard(runs, monkeypatch) -> None:
     """A SIGTERM that arrives while numba evaluates a run surfaces as a ``SystemError`` whose
     cause is the interruption; it must stop the command, not become a "broken" footnote."""
-    from interrupt_helpers import raise_sigterm_as_numba_does
-
     from egs_bench.errors import Interrupted
     from egs_bench.eval import results
+    from tests.helpers.interrupt_helpers import raise_sigterm_as_numba_does
 
     monkeypatch.setattr(results, "_load_metrics", raise_sigterm_as_numba_does)
     with pytest.raises(Interrupted):

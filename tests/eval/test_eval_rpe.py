@@ -11,14 +11,13 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from egs_bench.cli import main
 from egs_bench.errors import ConfigError, InputError
 from egs_bench.eval.ate import ate_from_files, check_argument_order, file_role_hint
 from egs_bench.eval.rpe import compute_rpe, rpe_from_files, standard_rpe
 from egs_bench.geometry import Trajectory, pose_from_tq, write_tum
+from tests.helpers.cli import assert_cli_error, run_cli
+from tests.helpers.trajectory_pairs import PAIRS, REAL, SYNTHETIC, pair_paths
 
-PAIRS = [("freiburg1_xyz-rgbdslam.txt", "freiburg1_xyz-groundtruth.txt"),
-         ("fr2_desk_ORB.txt", "fr2_desk_groundtruth.txt")]
 # (our keyword options, the same options for evo_rpe)
 OPTIONS = [
     ({"relation": "trans_part"}, ["-r", "trans_part"]),  # per frame, translation
@@ -59,22 +58,22 @@ def _assert_same(ours, ref_zip: zipfile.ZipFile) -> None:
 
 @pytest.mark.parametrize(("est_name", "gt_name"), PAIRS)
 @pytest.mark.parametrize(("ours", "evo_args"), OPTIONS)
-def test_rpe_equals_evo_rpe(shared_data, tmp_path, est_name, gt_name, ours, evo_args) -> None:
-    d = shared_data / "trajectories"
-    with _evo_rpe_function(d / gt_name, d / est_name, evo_args, tmp_path / "res.zip") as ref:
-        _assert_same(rpe_from_files(d / est_name, d / gt_name, **ours), ref)
+def test_rpe_equals_evo_rpe(request, tmp_path, est_name, gt_name, ours, evo_args) -> None:
+    est, gt = pair_paths(request, tmp_path, est_name, gt_name)
+    with _evo_rpe_function(gt, est, evo_args, tmp_path / "res.zip") as ref:
+        _assert_same(rpe_from_files(est, gt, **ours), ref)
 
 
-def test_rpe_equals_evo_rpe_executable(shared_data, tmp_path) -> None:
-    d = shared_data / "trajectories"
+@pytest.mark.parametrize(("est_name", "gt_name"), [SYNTHETIC, REAL[1]])
+def test_rpe_equals_evo_rpe_executable(request, tmp_path, est_name, gt_name) -> None:
+    est, gt = pair_paths(request, tmp_path, est_name, gt_name)
     evo_rpe = Path(sys.executable).parent / "evo_rpe"
     out = tmp_path / "res.zip"
-    subprocess.run([str(evo_rpe), "tum", str(d / PAIRS[1][1]), str(d / PAIRS[1][0]), "-r",
-                    "angle_deg", "-d", "1", "-u", "m", "--no_warnings", "--save_results",
-                    str(out)], check=True, capture_output=True)
+    subprocess.run([str(evo_rpe), "tum", str(gt), str(est), "-r", "angle_deg", "-d", "1", "-u",
+                    "m", "--no_warnings", "--save_results", str(out)], check=True,
+                   capture_output=True)
     with zipfile.ZipFile(out) as ref:
-        _assert_same(rpe_from_files(d / PAIRS[1][0], d / PAIRS[1][1], relation="angle_deg",
-                                    delta=1, delta_unit="m"), ref)
+        _assert_same(rpe_from_files(est, gt, relation="angle_deg", delta=1, delta_unit="m"), ref)
 
 
 def _wiggle(n: int = 120) -> Trajectory:
@@ -183,35 +182,28 @@ def test_rpe_bad_options_and_short_trajectories(tmp_path) -> None:
     assert "no pose pair 1 meters apart" in summary["per_metre"]["note"]
 
 
-def _cli(capsys, *argv: str) -> tuple[int, str, str]:
-    code = main(list(argv))
-    out = capsys.readouterr()
-    return code, out.out, out.err
-
-
 def test_cli_rpe_and_ate_take_gt_first(shared_data, tmp_path, capsys) -> None:
     d = shared_data / "trajectories"
     gt, est = d / "freiburg1_xyz-groundtruth.txt", d / "freiburg1_xyz-rgbdslam.txt"
     ref = rpe_from_files(est, gt, relation="angle_deg", delta=1, delta_unit="m")
-    code, out, _ = _cli(capsys, "rpe", str(gt), str(est), "-r", "angle_deg", "-d", "1", "-u",
-                        "m")
+    code, out, _ = run_cli(capsys, "rpe", str(gt), str(est), "-r", "angle_deg", "-d", "1", "-u",
+                           "m")
     assert code == 0 and f"{ref.rmse:.6f}" in out and "8 pairs of 785 matched poses" in out
-    code, out, _ = _cli(capsys, "ate", str(gt), str(est))
+    code, out, _ = run_cli(capsys, "ate", str(gt), str(est))
     assert code == 0 and "0.013470" in out and f"reference {gt}" in out
     # the old order fails with one clear line ...
-    code, _, err = _cli(capsys, "ate", str(est), str(gt), "--align", "sim3")
-    assert code == 2 and len(err.strip().splitlines()) == 1
-    assert "takes GT EST (evo's order)" in err and "looks like ground truth" in err
-    assert "--est-first" in err
+    code, _, err = run_cli(capsys, "ate", str(est), str(gt), "--align", "sim3")
+    assert_cli_error(code, err, 2, "takes GT EST (evo's order)", "looks like ground truth",
+                     "--est-first")
     # ... or, with the explicit flag, gives exactly the numbers of the new order
     sim3 = ate_from_files(est, gt, align="sim3")
-    code, out, _ = _cli(capsys, "ate", "--est-first", str(est), str(gt), "--align", "sim3")
+    code, out, _ = run_cli(capsys, "ate", "--est-first", str(est), str(gt), "--align", "sim3")
     assert code == 0 and f"{sim3.rmse:.6f}" in out and f"scale: {sim3.scale:.6f}" in out
     # why the order matters: swapping the roles changes Sim(3) ATE (not SE(3) ATE)
     swapped = ate_from_files(gt, est, align="sim3")
     assert abs(swapped.rmse - sim3.rmse) > 1e-4
-    code, _, err = _cli(capsys, "rpe", str(est), str(gt))
-    assert code == 2 and "egs-bench rpe takes GT EST" in err
+    code, _, err = run_cli(capsys, "rpe", str(est), str(gt))
+    assert_cli_error(code, err, 2, "egs-bench rpe takes GT EST", "--est-first")
 
 
 def test_file_role_hints(tmp_path) -> None:

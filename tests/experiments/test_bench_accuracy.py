@@ -11,12 +11,13 @@ from types import ModuleType
 
 import numpy as np
 import pandas as pd
-from sweep_fixtures import make_sequence, worker_env
+import pytest
 
 from egs_bench.provenance import code_revision
+from tests.helpers.sweep_fixtures import FAKE_EGS_PATH, FAKE_MONOGS_PATH, make_sequence, worker_env
 
 SCRIPT = Path(__file__).resolve().parents[2] / "benchmarks" / "bench_slam_accuracy.py"
-METHODS = "sweep_fixtures:FAKE_EGS,sweep_fixtures:FAKE_MONOGS"
+METHODS = f"{FAKE_EGS_PATH},{FAKE_MONOGS_PATH}"
 
 
 def _bench(*extra: str, cwd: Path) -> subprocess.CompletedProcess:
@@ -25,6 +26,7 @@ def _bench(*extra: str, cwd: Path) -> subprocess.CompletedProcess:
                           timeout=300)
 
 
+@pytest.mark.slow
 def test_status_run_and_resume(tmp_path: Path, monkeypatch) -> None:
     worker_env(monkeypatch)
     make_sequence(tmp_path / "data", "sa", 8, 0)
@@ -145,6 +147,7 @@ def test_seed_intervals_match_the_two_seed_case() -> None:
         "PSNR [-1.00, +1.00] dB"]
 
 
+@pytest.mark.slow
 def test_numbers_come_only_from_runs_of_this_configuration(tmp_path: Path, monkeypatch) -> None:
     """Run folders made with another configuration (here another frame limit; the folder names
     are the same) are reported stale, not tabulated under the new label; ``--status``
@@ -170,6 +173,7 @@ def test_numbers_come_only_from_runs_of_this_configuration(tmp_path: Path, monke
     assert runs.loc["monogs", "ate_cm"] > 0
 
 
+@pytest.mark.slow
 def test_bad_arguments_get_one_line(tmp_path: Path, monkeypatch) -> None:
     worker_env(monkeypatch)
     make_sequence(tmp_path / "data", "sa", 8, 0)
@@ -202,6 +206,7 @@ def test_bad_arguments_get_one_line(tmp_path: Path, monkeypatch) -> None:
     assert sorted(p.name for p in (tmp_path / "data").iterdir()) == ["sa"]
 
 
+@pytest.mark.slow
 def test_from_runs_tabulates_earlier_invocations_together(tmp_path: Path) -> None:
     """Two invocations' runs.csv (seeds run apart, one run in both) give one table and one
     summary; unfinished rows are left out; a run the files disagree on, a file that is not a
@@ -229,13 +234,15 @@ def test_from_runs_tabulates_earlier_invocations_together(tmp_path: Path) -> Non
     first.loc[0, "ate_cm"] = 2.5
     first.to_csv(tmp_path / "a.csv", index=False)
     (tmp_path / "c.csv").write_text("sequence,method\ns,egs\n")
-    for args, message in [(("--from-runs", "a.csv", "--from-runs", "b.csv"),
-                           "s/egs/seed0: a.csv and b.csv give it different numbers"),
-                          (("--from-runs", "c.csv"), "c.csv: not a runs.csv of this benchmark"),
-                          (("--from-runs", "nosuch.csv"), "nosuch.csv: cannot read it"),
-                          ((), "give --seq (run the benchmark) or --from-runs")]:
+    # a bad input file exits 1 (sys.exit with the message), a usage error 2 (argparse)
+    for args, code, message in [(("--from-runs", "a.csv", "--from-runs", "b.csv"), 1,
+                                 "s/egs/seed0: a.csv and b.csv give it different numbers"),
+                                (("--from-runs", "c.csv"), 1,
+                                 "c.csv: not a runs.csv of this benchmark"),
+                                (("--from-runs", "nosuch.csv"), 1, "nosuch.csv: cannot read it"),
+                                ((), 2, "give --seq (run the benchmark) or --from-runs")]:
         result = bench(*args)
-        assert result.returncode != 0, args
+        assert result.returncode == code, (args, result.stderr)
         last = result.stderr.strip().splitlines()[-1]
         assert last.startswith("bench_slam_accuracy.py: error: ") and message in last, last
 

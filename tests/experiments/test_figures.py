@@ -4,7 +4,6 @@ zoomed crops and per-image PSNR (checked against an independent computation), fi
 import imageio.v3 as iio
 import numpy as np
 import pytest
-from sweep_fixtures import BAD, GOOD, make_sequence
 
 from egs_bench.cli import main
 from egs_bench.datasets.sequence import Sequence
@@ -20,6 +19,8 @@ from egs_bench.eval.figures import (
 )
 from egs_bench.eval.image_metrics import psnr_masked
 from egs_bench.eval.protocols import get_protocol
+from tests.helpers.cli import assert_cli_error
+from tests.helpers.sweep_fixtures import BAD, GOOD, make_sequence
 
 
 @pytest.fixture(scope="module")
@@ -86,14 +87,15 @@ def test_figure_cli(runs, tmp_path, capsys) -> None:
     assert main(["figure", "qualitative", str(good.path), str(bad.path), "-o", str(out),
                  "--frames", "0,5", "--crop", "4,4,12,8"]) == 0
     assert out.read_bytes().startswith(b"%PDF")
-    assert main(["figure", "qualitative", str(good.path), "-o", str(out)]) == 2
-    assert "already exists" in capsys.readouterr().err
-    assert main(["figure", "trajectories", str(good.path), "-o", str(tmp_path)]) == 2
-    assert "is a folder" in capsys.readouterr().err
-    assert main(["figure", "histogram", str(good.path), "-o", str(tmp_path / "h.pdf")]) == 2
-    assert main(["figure", "qualitative", str(good.path), "-o", str(tmp_path / "c.pdf"),
-                 "--crop", "1,2,3"]) == 2
-    assert "--crop must be x,y,w,h" in capsys.readouterr().err
+    code = main(["figure", "qualitative", str(good.path), "-o", str(out)])
+    assert_cli_error(code, capsys.readouterr().err, 2, f"{out}: already exists")
+    code = main(["figure", "trajectories", str(good.path), "-o", str(tmp_path)])
+    assert_cli_error(code, capsys.readouterr().err, 2, f"{tmp_path}: ", "is a folder")
+    code = main(["figure", "histogram", str(good.path), "-o", str(tmp_path / "h.pdf")])
+    assert_cli_error(code, capsys.readouterr().err, 2, "histogram")
+    code = main(["figure", "qualitative", str(good.path), "-o", str(tmp_path / "c.pdf"),
+                 "--crop", "1,2,3"])
+    assert_cli_error(code, capsys.readouterr().err, 2, "--crop must be x,y,w,h")
 
 
 def test_detail_crops_find_the_textured_regions_without_overlap() -> None:

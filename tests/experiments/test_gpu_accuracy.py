@@ -6,7 +6,8 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
-from bench_scripts import load_script
+
+from tests.helpers.bench_scripts import load_script
 
 ga = load_script("gpu_accuracy")
 

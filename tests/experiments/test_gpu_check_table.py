@@ -3,7 +3,7 @@ from a check's JSON report, including runs left out by ``--until-s``."""
 
 from __future__ import annotations
 
-from bench_scripts import load_script
+from tests.helpers.bench_scripts import load_script
 
 
 def test_table_lists_every_run_and_the_ones_left_out() -> None:

@@ -8,7 +8,8 @@ from pathlib import Path
 
 import pytest
 import yaml
-from bench_scripts import load_script
+
+from tests.helpers.bench_scripts import load_script
 
 cm = load_script("gpu_cost_model")
 

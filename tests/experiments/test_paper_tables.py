@@ -14,6 +14,7 @@ from egs_bench.experiments.paper_tables import (
     render_markdown,
 )
 from egs_bench.runs.folder import RunFolder
+from tests.helpers.cli import assert_cli_error
 
 BASE_SLAM = {"event_tracking": True, "event_mapping": True, "crf": "learnable",
              "blur_model": True, "lambda_d": 0.1}
@@ -118,8 +119,8 @@ def test_paper_tables_cli_compiles_with_pdflatex(tmp_path, capsys) -> None:
     assert r"$\checkmark$ & $\times$" in events and r"\label{tab:ablation_events}" in events
     assert r"\begin{table*}" in events  # 3 sequences x 4 metrics: page-wide, shrunk to fit
     # existing tables are never replaced without --overwrite
-    assert main(["paper-tables", str(sweep)]) == 2
-    assert "already exists" in capsys.readouterr().err
+    code = main(["paper-tables", str(sweep)])
+    assert_cli_error(code, capsys.readouterr().err, 2, "already exists")
     assert main(["paper-tables", str(sweep), "--overwrite", "--width", "natural"]) == 0
 
 
@@ -131,8 +132,6 @@ def test_an_unknown_protocol_is_refused_not_tabulated_empty(tmp_path, capsys) ->
     for command in (["paper-tables", str(sweep), "--protocol", "tum"],
                     ["leaderboard", str(sweep / "runs"), "--protocol", "tum"],
                     ["regress", str(sweep / "runs"), str(sweep / "runs"), "--protocol", "tum"]):
-        assert main(command) == 2, command
-        err = capsys.readouterr().err
-        assert "'tum' is not one of 'egs', 'monogs'" in err
-        assert "Traceback" not in err
+        assert_cli_error(main(command), capsys.readouterr().err, 2, "--protocol",
+                         "'tum' is not one of 'egs', 'monogs'")
     assert not (sweep / "tables").exists()

@@ -18,6 +18,7 @@ from egs_bench.experiments.regress import (
     update_baseline,
 )
 from egs_bench.runs.folder import RunFolder
+from tests.helpers.cli import assert_cli_error
 
 
 def _runs(root, values: dict[tuple[str, str, int], tuple[float, float] | str]):
@@ -123,7 +124,7 @@ def test_regress_cli_update_and_exit_codes(tmp_path, capsys) -> None:
     assert main(["regress", str(baseline), str(cur), "--metrics", "ate",
                  "--tolerances", str(tmp_path / "wide.yaml")]) == 0
     (tmp_path / "folder").mkdir()
-    assert main(["regress", str(tmp_path / "folder"), str(cur), "--update"]) == 2
-    assert "is a folder" in capsys.readouterr().err
+    code = main(["regress", str(tmp_path / "folder"), str(cur), "--update"])
+    assert_cli_error(code, capsys.readouterr().err, 2, f"{tmp_path / 'folder'}: ", "is a folder")
     with pytest.raises(OutputError, match="is a folder"):
         update_baseline(cur, tmp_path / "folder")

@@ -11,6 +11,7 @@ from egs_bench.cli import main
 from egs_bench.errors import ConfigError
 from egs_bench.experiments.regress import compare, failed, render, summary_of
 from egs_bench.runs.folder import RunFolder
+from tests.helpers.cli import assert_cli_error
 
 BASELINE = Path(__file__).resolve().parents[2] / "benchmarks" / "regress" / "baseline.csv"
 
@@ -79,14 +80,13 @@ def test_unparsable_baseline_cells_are_an_error_not_new(tmp_path, capsys) -> Non
     cells = text[2].split(",")
     cells[text[0].split(",").index("ate_rmse_m_mean")] = "abc"
     bad.write_text("\n".join([*text[:2], ",".join(cells)]) + "\n")
-    assert main(["regress", str(bad), str(runs)]) == 3
-    err = capsys.readouterr().err
-    assert "abc.csv: line 3: ate_rmse_m_mean is 'abc', not a number" in err
-    assert len(err.strip().splitlines()) == 1
+    code = main(["regress", str(bad), str(runs)])
+    assert_cli_error(code, capsys.readouterr().err, 3,
+                     f"{bad}: line 3: ate_rmse_m_mean is 'abc', not a number")
     for value in ("nan", "inf"):
         bad.write_text(BASELINE.read_text().replace("0.00467581746270394", value))
-        assert main(["regress", str(bad), str(runs)]) == 3
-        assert f"line 2: ate_rmse_m_mean is '{value}'" in capsys.readouterr().err
+        code = main(["regress", str(bad), str(runs)])
+        assert_cli_error(code, capsys.readouterr().err, 3, f"line 2: ate_rmse_m_mean is '{value}'")
 
 
 def test_unknown_or_unchecked_metrics_are_refused(tmp_path, capsys) -> None:
@@ -95,13 +95,12 @@ def test_unknown_or_unchecked_metrics_are_refused(tmp_path, capsys) -> None:
                              ("ate,foo", "unknown metric 'foo' to check"),
                              ("fps", "metric 'fps' has no tolerance"),
                              (",", "no metric to check")):
-        assert main(["regress", str(BASELINE), str(runs), "--metrics", metrics]) == 2, metrics
-        err = capsys.readouterr().err
-        assert message in err and len(err.strip().splitlines()) == 1, err
+        code = main(["regress", str(BASELINE), str(runs), "--metrics", metrics])
+        assert_cli_error(code, capsys.readouterr().err, 2, message)
     tol = tmp_path / "tol.yaml"
     tol.write_text("ate: null\n")
-    assert main(["regress", str(BASELINE), str(runs), "--metrics", "ate", "-t", str(tol)]) == 2
-    assert "metric 'ate' has no tolerance" in capsys.readouterr().err
+    code = main(["regress", str(BASELINE), str(runs), "--metrics", "ate", "-t", str(tol)])
+    assert_cli_error(code, capsys.readouterr().err, 2, "metric 'ate' has no tolerance")
     with pytest.raises(ConfigError, match="unknown metric 'foo'"):
         compare(summary_of(BASELINE), summary_of(runs), metrics=["foo"])
 
@@ -114,8 +113,9 @@ def test_a_check_that_compares_nothing_fails(tmp_path, capsys) -> None:
         if col.endswith(("_mean", "_std")):
             df[col] = float("nan")
     empty.write_text(df.to_csv(index=False))
-    assert main(["regress", str(empty), str(runs)]) == 3
-    assert "empty.csv: holds no value of ate, psnr, ssim, lpips" in capsys.readouterr().err
+    code = main(["regress", str(empty), str(runs)])
+    assert_cli_error(code, capsys.readouterr().err, 3,
+                     f"{empty}: holds no value of ate, psnr, ssim, lpips")
     # only new rows: nothing was compared, which is no pass
     table = compare(summary_of(BASELINE).iloc[0:0], summary_of(runs))
     assert set(table["verdict"]) == {"new"} and failed(table)
@@ -126,6 +126,6 @@ def test_baseline_without_frames_column_asks_for_a_refresh(tmp_path, capsys) -> 
     runs = _like_baseline(tmp_path / "runs12", 12)
     old = tmp_path / "old.csv"
     old.write_text(pd.read_csv(BASELINE).drop(columns="frames").to_csv(index=False))
-    assert main(["regress", str(old), str(runs)]) == 3
-    err = capsys.readouterr().err
-    assert "old.csv: has no 'frames' column" in err and "--update" in err
+    code = main(["regress", str(old), str(runs)])
+    assert_cli_error(code, capsys.readouterr().err, 3, f"{old}: has no 'frames' column",
+                     "--update")

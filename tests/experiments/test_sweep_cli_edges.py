@@ -8,9 +8,9 @@ import json
 
 import pytest
 import yaml
-from sweep_fixtures import make_sequence, worker_env
 
 from egs_bench.cli import main
+from tests.helpers.sweep_fixtures import GOOD_PATH, make_sequence, worker_env
 
 
 @pytest.fixture
@@ -19,7 +19,7 @@ def sweep_file(tmp_path, monkeypatch):
     make_sequence(tmp_path / "data", "sa", 6, 0)
     monkeypatch.chdir(tmp_path)
     path = tmp_path / "s.yaml"
-    path.write_text(yaml.safe_dump({"methods": ["sweep_fixtures:GOOD"],
+    path.write_text(yaml.safe_dump({"methods": [GOOD_PATH],
                                     "sequences": ["data/sa"], "seeds": [0], "out": "out",
                                     "local": {"jobs": 1}}))
     return path

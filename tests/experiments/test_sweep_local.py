@@ -13,12 +13,12 @@ from pathlib import Path
 import pandas as pd
 import pytest
 import yaml
-from sweep_fixtures import make_sequence, worker_env
 
 from egs_bench.eval.leaderboard import collect, render_markdown
 from egs_bench.experiments.spec import RunSpec, load_sweep
 from egs_bench.experiments.sweep import run_sweep
 from egs_bench.experiments.worker import lock_is_held
+from tests.helpers.sweep_fixtures import BAD_PATH, GOOD_PATH, make_sequence, worker_env
 
 EGS_BENCH = [sys.executable, "-c", "from egs_bench.cli import run; run()"]
 
@@ -45,7 +45,7 @@ def _records(out: Path) -> dict[str, dict]:
 @pytest.mark.slow
 def test_sweep_survives_kill_and_resumes(sweep_dir) -> None:
     sweep = _write(sweep_dir / "s.yaml", {
-        "methods": ["sweep_fixtures:GOOD", "sweep_fixtures:BAD"],
+        "methods": [GOOD_PATH, BAD_PATH],
         "sequences": ["data/sa", "data/sb"], "seeds": [0, 1], "local": {"jobs": 2}})
     out = sweep_dir / "sweeps" / "s"
     env = {**os.environ, "FAKE_SLEEP_S": "2"}
@@ -101,7 +101,7 @@ def test_sweep_survives_kill_and_resumes(sweep_dir) -> None:
 def _sweep_stopped_after_the_method(sweep_dir: Path) -> tuple[Path, subprocess.Popen, Path]:
     """Start a one-run sweep whose method sleeps after marking its folder done; return the
     sweep file, the launcher and the run folder once the method is done (evaluation pending)."""
-    sweep = _write(sweep_dir / "e.yaml", {"methods": ["sweep_fixtures:GOOD"],
+    sweep = _write(sweep_dir / "e.yaml", {"methods": [GOOD_PATH],
                                           "sequences": ["data/sa"], "out": "out"})
     run_dir = sweep_dir / "out/runs/sa/good/seed0"
     env = {**os.environ, "FAKE_SLEEP_AFTER_S": "60"}
@@ -119,6 +119,7 @@ def _sweep_stopped_after_the_method(sweep_dir: Path) -> tuple[Path, subprocess.P
     return sweep, proc, run_dir
 
 
+@pytest.mark.slow
 def test_run_interrupted_after_the_method_finished_is_only_evaluated(sweep_dir) -> None:
     """SIGTERM after the method marked its folder done (before the evaluation): the next
     invocation evaluates the kept outputs instead of rerunning the method."""
@@ -155,8 +156,9 @@ def test_repeated_sigterms_do_not_leave_the_run_recorded_running(sweep_dir) -> N
     assert json.loads((run_dir / "sweep.json").read_text())["state"] == "interrupted"
 
 
+@pytest.mark.slow
 def test_sweep_failures_conflicts_and_retries(sweep_dir, monkeypatch) -> None:
-    data = {"methods": ["sweep_fixtures:GOOD"], "sequences": ["data/sa"], "seeds": [0, 1, 2],
+    data = {"methods": [GOOD_PATH], "sequences": ["data/sa"], "seeds": [0, 1, 2],
             "local": {"jobs": 2}, "out": "out"}
     sweep = _write(sweep_dir / "f.yaml", data)
     out = sweep_dir / "out"
@@ -200,8 +202,9 @@ def test_sweep_failures_conflicts_and_retries(sweep_dir, monkeypatch) -> None:
     assert (foreign / "notes.txt").read_text() == "a user's file"
 
 
+@pytest.mark.slow
 def test_sweep_time_limit_and_dry_run(sweep_dir, monkeypatch) -> None:
-    sweep = _write(sweep_dir / "t.yaml", {"methods": ["sweep_fixtures:GOOD"],
+    sweep = _write(sweep_dir / "t.yaml", {"methods": [GOOD_PATH],
                                           "sequences": ["data/sa"], "seeds": [0],
                                           "local": {"timeout_min": 0.15}, "out": "out"})
     lines: list[str] = []
@@ -251,7 +254,7 @@ def test_sweep_of_a_builtin_method_with_named_settings(tmp_path, monkeypatch, ti
 
 
 def test_ctrl_c_stops_workers_and_they_rerun(sweep_dir) -> None:
-    sweep = _write(sweep_dir / "c.yaml", {"methods": ["sweep_fixtures:GOOD"],
+    sweep = _write(sweep_dir / "c.yaml", {"methods": [GOOD_PATH],
                                           "sequences": ["data/sa"], "seeds": [0],
                                           "out": "out"})
     proc = subprocess.Popen([*EGS_BENCH, "sweep", str(sweep)],

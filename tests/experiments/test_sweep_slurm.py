@@ -5,10 +5,10 @@ import json
 
 import pytest
 import yaml
-from sweep_fixtures import make_sequence, worker_env
 
 from egs_bench.experiments.spec import load_sweep
 from egs_bench.experiments.sweep import run_sweep
+from tests.helpers.sweep_fixtures import GOOD_PATH, make_sequence, worker_env
 
 submitit = pytest.importorskip("submitit")
 
@@ -19,7 +19,7 @@ def test_slurm_backend_with_submitit_local_executor(tmp_path, monkeypatch) -> No
     monkeypatch.chdir(tmp_path)
     make_sequence(tmp_path / "data", "sa", 6, 0)
     (tmp_path / "s.yaml").write_text(yaml.safe_dump({
-        "methods": ["sweep_fixtures:GOOD"], "sequences": ["data/sa"], "seeds": [0, 1],
+        "methods": [GOOD_PATH], "sequences": ["data/sa"], "seeds": [0, 1],
         "out": "out", "slurm": {"timeout_min": 5, "cpus_per_task": 1, "partition": "gpu",
                                 "array_parallelism": 2,
                                 "additional_parameters": {"account": "me"}}}))

@@ -1,7 +1,6 @@
 """Sweep files: validation with one-line errors, expansion, stable names, hashes, shards, slots."""
 
 import pytest
-from sweep_fixtures import make_sequence
 
 from egs_bench.errors import ConfigError, InputError
 from egs_bench.experiments.backends import plan_slots
@@ -13,6 +12,7 @@ from egs_bench.experiments.spec import (
     parse_shard,
     parse_sweep,
 )
+from tests.helpers.sweep_fixtures import GOOD_PATH, make_sequence
 
 
 @pytest.fixture(scope="module")
@@ -99,7 +99,7 @@ def test_expand_rejects_bad_overrides_and_methods(tmp_path, seqs) -> None:
     unknown = parse_sweep({"methods": ["nosuch"], "sequences": ["a"]}, tmp_path / "s.yaml")
     with pytest.raises(InputError, match="unknown method 'nosuch'"):
         expand(unknown, seqs, tmp_path)
-    plugin = parse_sweep({"methods": ["sweep_fixtures:GOOD"], "sequences": ["a"],
+    plugin = parse_sweep({"methods": [GOOD_PATH], "sequences": ["a"],
                           "set": {"lambda_d": 0.1}}, tmp_path / "s.yaml")
     with pytest.raises(InputError, match="is a user method"):
         expand(plugin, seqs, tmp_path)
@@ -150,7 +150,7 @@ def test_decide_from_the_run_folder(tmp_path, seqs) -> None:
         decide,
     )
 
-    spec = parse_sweep({"methods": ["sweep_fixtures:GOOD"], "sequences": ["a"]}, "s.yaml")
+    spec = parse_sweep({"methods": [GOOD_PATH], "sequences": ["a"]}, "s.yaml")
     run = expand(spec, seqs, tmp_path)[0]
     run_dir = tmp_path / "runs" / run.run_id
 
@@ -227,7 +227,7 @@ def test_a_repeated_sigterm_during_the_interruption_record_is_ignored(tmp_path, 
 
     monkeypatch.setattr(worker, "_evaluate", sigterm_self)
     monkeypatch.setattr(worker, "write_record", repeat_then_write)
-    spec = parse_sweep({"methods": ["sweep_fixtures:GOOD"], "sequences": ["a"]}, "s.yaml")
+    spec = parse_sweep({"methods": [GOOD_PATH], "sequences": ["a"]}, "s.yaml")
     run = expand(spec, seqs, tmp_path)[0]
     with signals_interrupt():
         record = worker.execute(run, redirect=False)
@@ -245,7 +245,7 @@ def test_a_running_row_says_how_far_the_method_got(tmp_path, seqs) -> None:
     from egs_bench.experiments.worker import run_lock
     from egs_bench.runs.folder import RunFolder
 
-    spec = parse_sweep({"methods": ["sweep_fixtures:GOOD"], "sequences": ["a"]}, "s.yaml")
+    spec = parse_sweep({"methods": [GOOD_PATH], "sequences": ["a"]}, "s.yaml")
     run = expand(spec, seqs, tmp_path)[0]
     folder = RunFolder.create(run.run_dir, method="GOOD", sequence_name="sa",
                               sequence_path=seqs["a"])

@@ -9,12 +9,12 @@ import threading
 from pathlib import Path
 
 import pytest
-from sweep_fixtures import make_sequence
 
 from egs_bench.errors import InputError
 from egs_bench.experiments import worker
 from egs_bench.experiments.spec import RunSpec, expand, parse_sweep
 from egs_bench.experiments.sweep import run_row, run_sweep
+from tests.helpers.sweep_fixtures import GOOD_PATH, make_sequence
 
 
 @pytest.fixture(scope="module")
@@ -24,7 +24,7 @@ def seqs(tmp_path_factory):
 
 
 def _run(seqs, out: Path, **extra) -> RunSpec:
-    spec = parse_sweep({"methods": ["sweep_fixtures:GOOD"], "sequences": ["a"], **extra},
+    spec = parse_sweep({"methods": [GOOD_PATH], "sequences": ["a"], **extra},
                        "s.yaml")
     return expand(spec, seqs, out)[0]
 
@@ -178,7 +178,7 @@ def test_dry_run_and_status_generate_no_builtin_sequence(tmp_path, seqs, monkeyp
     data = tmp_path / "data"
     data.mkdir()
     monkeypatch.setenv("EGS_BENCH_DATA", str(data))
-    spec = parse_sweep({"methods": ["sweep_fixtures:GOOD"], "sequences": ["demo", str(seqs["a"])],
+    spec = parse_sweep({"methods": [GOOD_PATH], "sequences": ["demo", str(seqs["a"])],
                         "out": str(tmp_path / "out")}, "s.yaml")
     for flags in ({"dry_run": True}, {"status_only": True}):
         lines: list[str] = []
@@ -188,7 +188,7 @@ def test_dry_run_and_status_generate_no_builtin_sequence(tmp_path, seqs, monkeyp
         assert [r.sequence_name for r in report.runs] == ["sa"]
         assert report.summary["state"].tolist() == ["pending"]
         assert not any(data.iterdir())
-    typo = parse_sweep({"methods": ["sweep_fixtures:GOOD"], "sequences": ["demo-fats"]},
+    typo = parse_sweep({"methods": [GOOD_PATH], "sequences": ["demo-fats"]},
                        "s.yaml")
     with pytest.raises(InputError, match="demo-fats"):
         run_sweep(typo, out=tmp_path / "out2", dry_run=True, say=lambda m: None)

@@ -7,7 +7,6 @@ and every frame must come back with its own image, depth and pose."""
 
 from __future__ import annotations
 
-import csv
 import glob
 import json
 import os
@@ -23,88 +22,18 @@ from PIL import Image
 from egs_bench.datasets.sequence import Sequence
 from egs_bench.errors import InputError, OutputError
 from egs_bench.interop.export import export_sequence, read_export_index
+from tests.helpers.cli import assert_cli_error
+from tests.helpers.interop_consumers import (
+    monogs_replica_parser,
+    monogs_tum_parser,
+    orbslam3_read,
+    orbslam_load_images,
+    quat_wxyz_to_matrix,
+    retimed_copy,
+)
 
 # np.loadtxt warns about the '#' comment lines MonoGS' parser skips
 pytestmark = pytest.mark.filterwarnings("ignore:Input line .* contained no data:UserWarning")
-
-# ---------------------------------------------------------------- the consumers' logic
-def _quat_wxyz_to_matrix(q: np.ndarray) -> np.ndarray:
-    """trimesh.transformations.quaternion_matrix (w first), written out."""
-    w, x, y, z = np.asarray(q, dtype=np.float64) / np.linalg.norm(q)
-    return np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w), 0.0],
-        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w), 0.0],
-        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y), 0.0],
-        [0.0, 0.0, 0.0, 1.0]])
-
-
-def monogs_tum_parser(datapath: str, frame_rate: float = 32):
-    """MonoGS TUMParser.load_poses: colour paths, depth paths, w2c poses of kept frames."""
-    def parse_list(filepath, skiprows=0):
-        return np.loadtxt(filepath, delimiter=" ", dtype=np.str_, skiprows=skiprows)
-
-    pose_list = os.path.join(datapath, "groundtruth.txt")
-    image_data = parse_list(os.path.join(datapath, "rgb.txt"))
-    depth_data = parse_list(os.path.join(datapath, "depth.txt"))
-    pose_data = parse_list(pose_list, skiprows=1)
-    pose_vecs = pose_data[:, 0:].astype(np.float64)
-    tstamp_image = image_data[:, 0].astype(np.float64)
-    tstamp_depth = depth_data[:, 0].astype(np.float64)
-    tstamp_pose = pose_data[:, 0].astype(np.float64)
-    associations = []
-    for i, t in enumerate(tstamp_image):
-        j = np.argmin(np.abs(tstamp_depth - t))
-        k = np.argmin(np.abs(tstamp_pose - t))
-        if (np.abs(tstamp_depth[j] - t) < 0.08) and (np.abs(tstamp_pose[k] - t) < 0.08):
-            associations.append((i, j, k))
-    indices = [0]
-    for i in range(1, len(associations)):
-        t0 = tstamp_image[associations[indices[-1]][0]]
-        t1 = tstamp_image[associations[i][0]]
-        if t1 - t0 > 1.0 / frame_rate:
-            indices += [i]
-    colors, depths, poses = [], [], []
-    for ix in indices:
-        (i, j, k) = associations[ix]
-        colors.append(os.path.join(datapath, image_data[i, 1]))
-        depths.append(os.path.join(datapath, depth_data[j, 1]))
-        T = _quat_wxyz_to_matrix(np.roll(pose_vecs[k][4:], 1))
-        T[:3, 3] = pose_vecs[k][1:4]
-        poses.append(np.linalg.inv(T))
-    return colors, depths, poses
-
-
-def monogs_replica_parser(input_folder: str):
-    """MonoGS ReplicaParser: sorted JPEG / depth globs and traj.txt (c2w, inverted)."""
-    colors = sorted(glob.glob(f"{input_folder}/results/frame*.jpg"))
-    depths = sorted(glob.glob(f"{input_folder}/results/depth*.png"))
-    with open(f"{input_folder}/traj.txt") as f:
-        lines = f.readlines()
-    poses = [np.linalg.inv(np.array(list(map(float, lines[i].split()))).reshape(4, 4))
-             for i in range(len(colors))]
-    return colors, depths, poses
-
-
-def orbslam_load_images(association_file: str):
-    """rgbd_tum.cc LoadImages: every non-empty line is 't rgb t depth'."""
-    rgb, depth, stamps = [], [], []
-    with open(association_file) as f:
-        for s in f.read().split("\n"):
-            if s:
-                parts = s.split()
-                stamps.append(float(parts[0]))
-                rgb.append(parts[1])
-                depth.append(parts[3])
-    return rgb, depth, stamps
-
-
-def orbslam3_read(fs: cv2.FileStorage, name: str, kind: str):
-    """ORB-SLAM3 Settings::readParameter: aborts unless the node has the right type."""
-    node = fs.getNode(name)
-    assert not node.empty(), f"{name} required parameter does not exist"
-    check = {"float": node.isReal, "int": node.isInt, "string": node.isString}[kind]
-    assert check(), f"{name} parameter must be a {kind}"
-    return {"float": node.real, "int": lambda: int(node.real()), "string": node.string}[kind]()
 
 
 # ---------------------------------------------------------------- fixtures
@@ -116,26 +45,6 @@ def seq(tiny_sequence: Path) -> Sequence:
 @pytest.fixture(scope="module")
 def tum_export(seq: Sequence, tmp_path_factory) -> Path:
     return export_sequence(seq, tmp_path_factory.mktemp("exp") / "tum", fmt="tum-rgbd").path
-
-
-def _retimed_copy(src: Path, dst: Path, period_us: int) -> Path:
-    """A copy of a sequence whose frames are ``period_us`` apart (events untouched)."""
-    shutil.copytree(src, dst)
-    with (dst / "frames.csv").open() as f:
-        rows = list(csv.DictReader(f))
-    t_end = int(rows[0]["t_end_us"]) + period_us * np.arange(len(rows))
-    exposure = int(rows[0]["t_end_us"]) - int(rows[0]["t_start_us"])
-    for r, t in zip(rows, t_end, strict=True):
-        r["t_end_us"], r["t_start_us"] = int(t), int(t) - min(exposure, period_us - 1000)
-    with (dst / "frames.csv").open("w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
-    from egs_bench.geometry import read_tum, write_tum
-
-    gt = read_tum(dst / "groundtruth.txt")
-    write_tum(dst / "groundtruth.txt", t_end * 1e-6, gt.poses)
-    return dst
 
 
 # ---------------------------------------------------------------- tum-rgbd
@@ -167,7 +76,7 @@ def test_monogs_would_lose_the_first_pose_without_the_header(tum_export: Path) -
 def test_frames_closer_than_1_32_s_are_retimed(tiny_sequence: Path, tmp_path: Path) -> None:
     """At 50 fps MonoGS keeps only every other frame of the plain stamps; the default export
     rewrites them to 1/30 s steps and keeps all, and the index maps back to the sequence."""
-    fast = Sequence.open(_retimed_copy(tiny_sequence, tmp_path / "fast", 20_000))
+    fast = Sequence.open(retimed_copy(tiny_sequence, tmp_path / "fast", 20_000))
     plain = export_sequence(fast, tmp_path / "plain", fmt="tum-rgbd", retime="never").path
     assert len(monogs_tum_parser(str(plain))[0]) == 2  # the pitfall is real
     res = export_sequence(fast, tmp_path / "auto", fmt="tum-rgbd")
@@ -265,7 +174,7 @@ def test_eds_layout_passes_rampvo_loaders(seq: Sequence, tmp_path: Path) -> None
     mat = np.loadtxt(os.path.join(out, "pose_left.txt")).astype(float)  # read_eds_format_poses
     np.testing.assert_allclose(mat[:, 0], seq.timestamps_s, atol=1e-6)
     for i in range(len(seq)):
-        T = _quat_wxyz_to_matrix(np.roll(mat[i, 4:], 1))
+        T = quat_wxyz_to_matrix(np.roll(mat[i, 4:], 1))
         T[:3, 3] = mat[i, 1:4]
         np.testing.assert_allclose(T, seq.poses[i], atol=2e-8)
     k = yaml.safe_load((out / "K.yaml").read_text())["cam0"]
@@ -304,13 +213,14 @@ def test_output_safety(seq: Sequence, tmp_path: Path) -> None:
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]  # no temp leftovers
 
 
-def test_cli_export_and_errors(tiny_sequence: Path, tmp_path: Path) -> None:
+def test_cli_export_and_errors(tiny_sequence: Path, tmp_path: Path, capsys) -> None:
     from egs_bench.cli import main
 
     assert main(["export", str(tiny_sequence), str(tmp_path / "o"), "--format", "tum-rgbd",
                  "--quiet"]) == 0
     assert (tmp_path / "o" / "monogs_rgbd.yaml").is_file()
-    assert main(["export", str(tiny_sequence), str(tmp_path / "o2"), "--format", "kitti"]) == 2
+    code = main(["export", str(tiny_sequence), str(tmp_path / "o2"), "--format", "kitti"])
+    assert_cli_error(code, capsys.readouterr().err, 2, "--format", "kitti")
     assert not (tmp_path / "o2").exists()
 
 
@@ -355,8 +265,6 @@ def test_cli_export_of_a_truncated_frame(tiny_sequence: Path, tmp_path: Path, ca
     from egs_bench.cli import main
 
     src = _damaged_copy(tiny_sequence, tmp_path / "seq", "rgb", "truncated")
-    assert main(["export", str(src), str(tmp_path / "o"), "--format", "tum-rgbd",
-                 "--quiet"]) == 3
-    err = capsys.readouterr().err.strip()
-    assert len(err.splitlines()) == 1 and "000002.png" in err
+    code = main(["export", str(src), str(tmp_path / "o"), "--format", "tum-rgbd", "--quiet"])
+    assert_cli_error(code, capsys.readouterr().err, 3, src / "rgb" / "000002.png")
     assert not (tmp_path / "o").exists()

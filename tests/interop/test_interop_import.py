@@ -19,6 +19,8 @@ from egs_bench.errors import ConfigError, InputError, OutputError
 from egs_bench.eval.evaluate import evaluate_run
 from egs_bench.geometry import invert_pose, pose_from_tq, pose_to_tq
 from egs_bench.interop.export import export_sequence
+from tests.helpers.cli import assert_cli_error
+from tests.helpers.interop_consumers import monogs_tum_parser, retimed_copy
 
 pytestmark = pytest.mark.filterwarnings("ignore:Input line .* contained no data:UserWarning")
 
@@ -28,9 +30,8 @@ def seq_path(tmp_path_factory) -> Path:
     """10 frames, 64x48, of the plane scene (30 fps, 15 ms exposures), with its ground truth
     replaced by a 6-DoF helix: the plane's straight line cannot be aligned (Umeyama needs a
     non-degenerate trajectory) and these tests only need poses, not matching images."""
-    from plane_scene import make_plane_sequence
-
     from egs_bench.geometry import read_tum, write_tum
+    from tests.helpers.plane_scene import make_plane_sequence
 
     path = make_plane_sequence(tmp_path_factory.mktemp("imp") / "plane", frames=10)
     stamps = read_tum(path / "groundtruth.txt").timestamps
@@ -122,9 +123,7 @@ def test_orbslam2_keyframe_file_alone_is_marked(seq: Sequence, export: Path,
 
 
 def test_retimed_export_maps_back_to_sequence_stamps(seq_path: Path, tmp_path: Path) -> None:
-    from test_interop_export import _retimed_copy
-
-    fast = Sequence.open(_retimed_copy(seq_path, tmp_path / "fast", 20_000))
+    fast = Sequence.open(retimed_copy(seq_path, tmp_path / "fast", 20_000))
     exp = export_sequence(fast, tmp_path / "exp", fmt="tum-rgbd")
     assert exp.retimed
     t_export = np.round(fast.timestamps_s[0] + np.arange(len(fast)) / 30, 6)
@@ -227,9 +226,7 @@ def test_monogs_result_folder(seq: Sequence, export: Path, tmp_path: Path) -> No
 def test_monogs_uids_follow_its_frame_dropping(seq_path: Path, tmp_path: Path) -> None:
     """Exported without retiming at 50 fps, MonoGS keeps frames 0, 2, 4, ...: uid k is frame
     2k (its TUMParser's 1/32 s rule)."""
-    from test_interop_export import _retimed_copy, monogs_tum_parser
-
-    fast = Sequence.open(_retimed_copy(seq_path, tmp_path / "fast", 20_000))
+    fast = Sequence.open(retimed_copy(seq_path, tmp_path / "fast", 20_000))
     exp = export_sequence(fast, tmp_path / "exp", fmt="tum-rgbd", retime="never").path
     kept_by_monogs = len(monogs_tum_parser(str(exp))[0])
     kept = monogs_kept_frames(fast.timestamps_s)
@@ -388,9 +385,9 @@ def test_cli_import_run(seq: Sequence, export: Path, tmp_path: Path, capsys) -> 
     assert "imported ORB-SLAM2 on plane" in out and "poses: keyframes" in out
     assert main(["eval", str(tmp_path / "run")]) == 0
     assert "keyframes poses only" in capsys.readouterr().out
-    assert main(["import-run", str(tmp_path / "orb"), str(tmp_path / "run2"), "--from",
-                 "tum"]) == 2
-    assert "--from tum needs --method and --sequence" in capsys.readouterr().err
+    code = main(["import-run", str(tmp_path / "orb"), str(tmp_path / "run2"), "--from",
+                 "tum"])
+    assert_cli_error(code, capsys.readouterr().err, 2, "--from tum needs --method and --sequence")
 
 
 # ---------------------------------------------------------------- validation at import (issue 36)
@@ -451,9 +448,7 @@ def test_tum_import_validates_as_eval_would(seq: Sequence, tmp_path: Path, capsy
     for argv, message in cases:
         code = main(["import-run", *argv, str(out), "--from", "tum", "-m", "ext", "-s",
                      "plane"])
-        err = capsys.readouterr().err
-        assert code == 3, (argv, err)
-        assert message in err and len(err.strip().splitlines()) == 1, (argv, err)
+        assert_cli_error(code, capsys.readouterr().err, 3, message)
         assert not out.exists() and _no_leftovers(tmp_path), argv
     # the fixed inputs import into the same folder without --overwrite
     run = import_tum_run(est, out, method="ext", sequence_name="plane",
@@ -473,10 +468,9 @@ def test_external_import_with_a_bad_render_leaves_nothing(seq: Sequence, export:
     good = jpg.read_bytes()
     _truncate(jpg)
     out = tmp_path / "run"
-    assert main(["import-run", str(tmp_path / "ps"), str(out), "--from", "photoslam",
-                 "--export", str(export)]) == 3
-    err = capsys.readouterr().err
-    assert "30000_1.jpg" in err and len(err.strip().splitlines()) == 1
+    code = main(["import-run", str(tmp_path / "ps"), str(out), "--from", "photoslam",
+                 "--export", str(export)])
+    assert_cli_error(code, capsys.readouterr().err, 3, jpg)
     assert not out.exists() and _no_leftovers(tmp_path)
     jpg.write_bytes(good)
     # a failure after the run folder was created (disk full while writing a render)

@@ -11,7 +11,6 @@ import cv2
 import numpy as np
 import pytest
 import yaml
-from rig import T0_US, Rig, assert_events_match, calib_dict, event_camera_dict, make_rig
 
 import egs_bench.cli.recording_cmds  # noqa: F401  (registers the commands)
 from egs_bench.cli import main
@@ -22,6 +21,15 @@ from egs_bench.images import read_ldr_image
 from egs_bench.recordings import RecordingSpec, import_recording
 from egs_bench.recordings.enslam import import_enslam, read_davis_intrinsics, stamp_us
 from egs_bench.recordings.rosbag import BagFile
+from tests.helpers.cli import assert_cli_error
+from tests.helpers.rig import (
+    T0_US,
+    Rig,
+    assert_events_match,
+    calib_dict,
+    event_camera_dict,
+    make_rig,
+)
 
 DEPTH_TOPIC = "/camera/depth/image_rect_raw"
 
@@ -165,8 +173,8 @@ def test_bad_dev_reals_input_is_one_line(dev_reals, tmp_path: Path, capsys) -> N
     empty = tmp_path / "empty"
     empty.mkdir()
     code, err = _run(["--input", str(empty), *base], capsys)
-    assert code == 3 and err.count("\n") == 1
-    assert err.startswith(f"error: {empty / 'rgbd/depth'}: missing: not a DEV-Reals sequence")
+    assert_cli_error(code, err, 3, f"error: {empty / 'rgbd/depth'}: missing: not a DEV-Reals "
+                     "sequence")
     # an events.csv of another format
     other = tmp_path / "other"
     for sub in ("rgbd", "pose", "davis346"):
@@ -177,17 +185,17 @@ def test_bad_dev_reals_input_is_one_line(dev_reals, tmp_path: Path, capsys) -> N
     (other / "davis346/event").mkdir()
     (other / "davis346/event/events.csv").write_text("t,x,y,p\n1,2,3,1\n")
     code, err = _run(["--input", str(other), *base], capsys)
-    assert code == 3 and err.count("\n") == 1
-    assert err.startswith(f"error: {other / 'davis346/event/events.csv'}: header is 't,x,y,p'")
+    assert_cli_error(code, err, 3, f"error: {other / 'davis346/event/events.csv'}: header is "
+                     "'t,x,y,p'")
     # a bad option
     code, err = _run(["--input", str(root), *base, "--frames", "kinect"], capsys)
-    assert code == 2 and err.startswith("error: Invalid value for '--frames'")
-    assert "'kinect' is not one of 'rgbd', 'davis'" in err
+    assert_cli_error(code, err, 2, "error: Invalid value for '--frames'",
+                     "'kinect' is not one of 'rgbd', 'davis'")
     # a row that is not an event
     (other / "davis346/event/events.csv").write_text(
         "x,y,ts_s,ts_n,polarity\n1,2,1700000000,0,True\n3,-4,1700000000,5,False\n")
     code, err = _run(["--input", str(other), *base, "--frames", "davis", "--max-gt-gap-ms", "200"],
                      capsys)
-    assert code == 3 and err.count("\n") == 1
-    assert "events.csv: line 3: y '-4' is not a non-negative integer" in err
+    assert_cli_error(code, err, 3, f"{other / 'davis346/event/events.csv'}: line 3: y '-4' is not "
+                     "a non-negative integer")
     assert not (tmp_path / "o").exists()

@@ -11,19 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-from bags import BagBuilder
 from numpy.lib.stride_tricks import sliding_window_view
-from rig import (
-    DEPTH_OFFSET_US,
-    MOCAP_OFFSET_US,
-    SCENE,
-    T0_US,
-    Rig,
-    assert_events_match,
-    calib_dict,
-    event_camera_dict,
-    make_rig,
-)
 from typer.testing import CliRunner
 
 import egs_bench.cli.eval_cmds  # registers the commands
@@ -35,6 +23,19 @@ from egs_bench.datasets.sequence import Sequence
 from egs_bench.errors import InputError, OutputError
 from egs_bench.geometry import rotation_angle, write_tum
 from egs_bench.recordings import RecordingSpec, import_recording
+from tests.helpers.bags import BagBuilder
+from tests.helpers.cli import assert_cli_error, run_cli
+from tests.helpers.rig import (
+    DEPTH_OFFSET_US,
+    MOCAP_OFFSET_US,
+    SCENE,
+    T0_US,
+    Rig,
+    assert_events_match,
+    calib_dict,
+    event_camera_dict,
+    make_rig,
+)
 
 PRESET = "davis-realsense"
 
@@ -238,9 +239,8 @@ def test_bad_sensor_option_is_one_line(rig: Rig, tmp_path: Path, capsys) -> None
     code = main(["import-recording", "--out", str(tmp_path / "o"), "--events", str(rig.bag),
                  "--depth", str(rig.bag), "--gt", str(rig.bag), "--calib", str(rig.calib),
                  "--sensor", "lidar=Velodyne"])
-    err = capsys.readouterr().err
-    assert code == 2 and err.count("\n") == 1
-    assert err.startswith("error: --sensor 'lidar=Velodyne': expected STREAM=NAME")
+    assert_cli_error(code, capsys.readouterr().err, 2,
+                     "error: --sensor 'lidar=Velodyne': expected STREAM=NAME")
 
 
 def test_truncated_bag(rig: Rig, tmp_path: Path) -> None:
@@ -268,9 +268,8 @@ def test_cli_error_is_one_line(rig: Rig, tmp_path: Path, capsys) -> None:
                  "--depth", str(rig.bag), "--gt", str(rig.bag), "--preset", PRESET,
                  "--calib", str(rig.calib),
                  "--camera-info-topic", "/dvs/camera_info", "--gt-topic", "/nope"])
-    err = capsys.readouterr().err
-    assert code == 3  # a data error (the bag lacks the topic)
-    assert err.startswith(f"error: {rig.bag}: no topic '/nope'") and err.count("\n") == 1
+    # a data error (the bag lacks the topic)
+    assert_cli_error(code, capsys.readouterr().err, 3, f"error: {rig.bag}: no topic '/nope'")
 
 
 # ------------------------------------------------------------------ other inputs
@@ -404,27 +403,35 @@ def test_run_and_eval_on_imported_rig(imported: Path, tmp_path: Path) -> None:
 
 
 # ------------------------------------------------------------------ CLI helpers
-def test_make_calib_from_kalibr_and_presets_listing(tmp_path: Path) -> None:
+def test_make_calib_from_kalibr_and_presets_listing(tmp_path: Path, capsys) -> None:
     kalibr = tmp_path / "camchain.yaml"
     kalibr.write_text(yaml.safe_dump({"cam0": {
         "camera_model": "pinhole", "intrinsics": [226.4, 226.2, 173.6, 133.7],
         "distortion_model": "equidistant", "distortion_coeffs": [-0.048, 0.011, -0.049, 0.016],
         "resolution": [346, 260], "rostopic": "/davis/left/image_raw"}}))
-    runner = CliRunner()
     out = tmp_path / "calib.yaml"
-    res = runner.invoke(app, ["make-calib", "--kalibr", str(kalibr), "--preset", "mvsec-indoor",
-                              "--out", str(out)])
-    assert res.exit_code == 0, res.output
+    code, _, err = run_cli(capsys, "make-calib", "--kalibr", kalibr, "--preset", "mvsec-indoor",
+                           "--out", out)
+    assert code == 0, err
     from egs_bench.recordings import load_calib
 
     calib = load_calib(out)
     assert calib.event_camera.model == "equidistant" and calib.depth_on_event_grid
     assert calib.depth_camera == calib.event_camera
     assert calib.event_camera.cx == 173.6
-    res = runner.invoke(app, ["make-calib", "--kalibr", str(kalibr), "--out", str(out)])
-    assert res.exit_code != 0 and out.is_file()  # never overwrites a calibration
-    res = runner.invoke(app, ["recording-presets"])
-    assert res.exit_code == 0
+    before = out.read_text()
+    code, _, err = run_cli(capsys, "make-calib", "--kalibr", kalibr, "--out", out)
+    assert_cli_error(code, err, 2, f"{out}: already exists", "--overwrite")
+    assert out.read_text() == before  # never overwrites a calibration
+    code, _, err = run_cli(capsys, "make-calib", "--kalibr", kalibr, "--preset", "mvsec",
+                           "--out", tmp_path / "c2.yaml")
+    assert_cli_error(code, err, 2, "unknown --preset 'mvsec'", "mvsec-indoor")
+    code, _, err = run_cli(capsys, "make-calib", "--kalibr", kalibr, "--ros-yaml", kalibr,
+                           "--out", tmp_path / "c2.yaml")
+    assert_cli_error(code, err, 2, "--kalibr or --ros-yaml, not both")
+    assert not (tmp_path / "c2.yaml").exists()
+    code, out_text, _ = run_cli(capsys, "recording-presets")
+    assert code == 0
     for name in ("davis-realsense", "mvsec-indoor", "vector-small", "/davis/left/depth_image_raw",
                  "events_on_frame_sensor: false"):
-        assert name in res.output
+        assert name in out_text

@@ -9,11 +9,11 @@ import h5py
 import hdf5plugin
 import numpy as np
 import pytest
-from bags import BagBuilder
 
 from egs_bench.datasets.events import EventStream
 from egs_bench.errors import InputError
 from egs_bench.recordings.rosbag import BagFile, _decode_event_array, _events_from_msg
+from tests.helpers.bags import BagBuilder
 
 AEDAT = "events/davis346_aestream.aedat4"
 

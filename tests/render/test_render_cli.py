@@ -6,15 +6,10 @@ import numpy as np
 import pytest
 import torch
 
-from egs_bench.cli import main
 from egs_bench.geometry import Intrinsics
 from egs_bench.images import read_ldr_image
 from egs_bench.render import GaussianMap
-
-
-def _cli(capsys, *argv: str) -> tuple[int, str]:
-    code = main(list(argv))
-    return code, capsys.readouterr().err
+from tests.helpers.cli import assert_cli_error, run_cli
 
 
 @pytest.fixture
@@ -31,8 +26,8 @@ def plane_ply(tmp_path):
 
 def test_render_map_writes_png(tmp_path, plane_ply, capsys):
     out = tmp_path / "v.png"
-    code, err = _cli(capsys, "render-map", str(plane_ply), "-o", str(out), "--width", "48",
-                     "--height", "32", "--pose", "0 0 0 0 0 0 1")
+    code, _, err = run_cli(capsys, "render-map", plane_ply, "-o", out, "--width", "48",
+                           "--height", "32", "--pose", "0 0 0 0 0 0 1")
     assert code == 0, err
     img = read_ldr_image(out)
     assert img.shape == (32, 48, 3) and img[16, 24].max() > 100  # the grey plane is in view
@@ -49,7 +44,6 @@ def test_render_map_reports_bad_input_in_one_line(tmp_path, plane_ply, capsys, a
                                                   message):
     out = tmp_path / "v.png"
     argv = [a.replace("{tmp}", str(tmp_path)).replace("{ply}", str(plane_ply)) for a in argv]
-    got, err = _cli(capsys, "render-map", *argv, "-o", str(out))
-    assert got == code and message in err, err
-    assert len(err.strip().splitlines()) == 1 and "internal error" not in err
+    got, _, err = run_cli(capsys, "render-map", *argv, "-o", out)
+    assert_cli_error(got, err, code, message)
     assert not out.exists()

@@ -6,11 +6,11 @@ import math
 
 import pytest
 import torch
-from render_scenes import random_scene
 
 from egs_bench.errors import ConfigError
 from egs_bench.render import constants as RC
 from egs_bench.render import project_gaussians, rasterize
+from tests.helpers.render_scenes import random_scene
 
 FIELDS = ("rgb", "depth", "expected_depth", "alpha")
 

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import pytest
 import torch
-from render_scenes import leaf_copy, random_scene, se3_exp
 
 from egs_bench.render import rasterize
+from tests.helpers.render_scenes import leaf_copy, random_scene, se3_exp
 
 PARAMS = ("means", "quats", "scales", "opacities", "colors", "viewmats")
 

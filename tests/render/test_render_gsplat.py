@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import pytest
 import torch
-from render_scenes import leaf_copy, random_scene
 
 from egs_bench.errors import ConfigError
 from egs_bench.render import rasterize
+from tests.helpers.render_scenes import leaf_copy, random_scene
 
 HAVE_CUDA = torch.cuda.is_available()
 

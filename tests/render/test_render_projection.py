@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import pytest
 import torch
-from render_scenes import leaf_copy, random_scene
 
 from egs_bench.render.numba_projection import CHUNK, project_gaussians_fused
 from egs_bench.render.projection import project_gaussians
+from tests.helpers.render_scenes import leaf_copy, random_scene
 
 DIFFERENTIABLE = ("means", "quats", "scales", "viewmats")
 ARGS = ("means", "quats", "scales", "opacities", "viewmats", "Ks", "width", "height")

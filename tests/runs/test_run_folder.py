@@ -78,9 +78,8 @@ def test_signal_surfacing_as_a_numba_system_error_marks_the_run_interrupted(tmp_
     ``SystemError: CPUDispatcher(...) returned a result with an exception set``, the
     interruption being its cause, and the run read ``failed`` (a sweep keeps those). It must
     read ``interrupted`` (a sweep reruns those), and the interruption must propagate."""
-    from interrupt_helpers import raise_sigterm_as_numba_does
-
     from egs_bench.errors import Interrupted
+    from tests.helpers.interrupt_helpers import raise_sigterm_as_numba_does
 
     run = RunFolder.create(tmp_path / "r", method="m", sequence_name="s", sequence_path=tmp_path)
     with pytest.raises(Interrupted) as info, run.failure_guard():

@@ -7,11 +7,11 @@ import signal
 from pathlib import Path
 
 import pytest
-from safety_helpers import python_subprocess, wait_for
 
 from egs_bench.cli import main
 from egs_bench.datasets.sequence import Sequence
 from egs_bench.fileio import FileLock, atomic_dir, clean_stale_staging
+from tests.helpers.safety_helpers import python_subprocess, wait_for
 
 
 def _staging(out: Path) -> list[Path]:

@@ -12,15 +12,10 @@ import numpy as np
 import pytest
 import yaml
 
-from egs_bench.cli import main
 from egs_bench.eval.lpips import lpips_distance
+from tests.helpers.cli import assert_cli_error, run_cli
 
 BINARY = bytes(range(256)) * 8
-
-
-def _cli(capsys, *argv: str | Path) -> tuple[int, str]:
-    code = main([str(a) for a in argv])
-    return code, capsys.readouterr().err
 
 
 def _set_meta(seq: Path, **changes: object) -> None:
@@ -46,16 +41,15 @@ def _set_meta(seq: Path, **changes: object) -> None:
 ])
 def test_implausible_metadata_is_refused_where_it_is_read(seq_copy, capsys, change, message):
     _set_meta(seq_copy, **change)
-    code, err = _cli(capsys, "info", seq_copy)
-    assert code == 3 and f"{seq_copy / 'meta.yaml'}: {message}" in err, err
-    assert len(err.strip().splitlines()) == 1
+    code, _, err = run_cli(capsys, "info", seq_copy)
+    assert_cli_error(code, err, 3, f"{seq_copy / 'meta.yaml'}: {message}")
 
 
 @pytest.mark.parametrize("name", ["meta.yaml", "groundtruth.txt", "frames.csv"])
 def test_binary_text_files_are_named(seq_copy, capsys, name):
     (seq_copy / name).write_bytes(BINARY)
-    code, err = _cli(capsys, "info", seq_copy)
-    assert code == 3 and str(seq_copy / name) in err and "internal error" not in err, err
+    code, _, err = run_cli(capsys, "info", seq_copy)
+    assert_cli_error(code, err, 3, f"{seq_copy / name}: ")
 
 
 def test_inconsistent_ms_to_idx_is_refused(seq_copy, capsys):
@@ -68,10 +62,9 @@ def test_inconsistent_ms_to_idx_is_refused(seq_copy, capsys):
         del f["ms_to_idx"]
         f.create_dataset("ms_to_idx", data=m)
     expected = int(np.searchsorted(t, 1000 * ms))
-    code, err = _cli(capsys, "info", seq_copy)
-    assert code == 3, err
-    assert (f"events.h5: ms_to_idx[{ms}] = {expected + 2}, but {expected} events come before "
-            f"{ms} ms") in err
+    code, _, err = run_cli(capsys, "info", seq_copy)
+    assert_cli_error(code, err, 3, f"{seq_copy / 'events.h5'}: ms_to_idx[{ms}] = {expected + 2}, "
+                     f"but {expected} events come before {ms} ms")
 
 
 @pytest.mark.parametrize("name,content,message", [
@@ -85,16 +78,17 @@ def test_inconsistent_ms_to_idx_is_refused(seq_copy, capsys):
 ])
 def test_broken_run_files_are_named(done_run, capsys, name, content, message):
     (done_run.path / name).write_bytes(content)
-    code, err = _cli(capsys, "eval", done_run.path)
-    assert code == 3 and message in err and "internal error" not in err, err
+    code, _, err = run_cli(capsys, "eval", done_run.path)
+    assert_cli_error(code, err, 3, done_run.path / name, message)
 
 
 def test_sixteen_bit_render_is_refused_not_truncated(done_run, capsys):
     import cv2
 
     cv2.imwrite(str(done_run.render_path(0)), np.zeros((32, 48, 3), np.uint16))
-    code, err = _cli(capsys, "eval", done_run.path)
-    assert code == 3 and "000000.png: expected an 8-bit image, found uint16 samples" in err
+    code, _, err = run_cli(capsys, "eval", done_run.path)
+    assert_cli_error(code, err, 3,
+                     f"{done_run.render_path(0)}: expected an 8-bit image, found uint16 samples")
 
 
 def test_ate_does_not_depend_on_lpips_weights(done_run, tmp_path, monkeypatch, capsys):
@@ -102,7 +96,7 @@ def test_ate_does_not_depend_on_lpips_weights(done_run, tmp_path, monkeypatch, c
     empty = tmp_path / "no_weights"
     empty.mkdir()
     monkeypatch.setenv("EGS_BENCH_LPIPS_WEIGHTS", str(empty))
-    code, err = _cli(capsys, "eval", done_run.path)
+    code, _, err = run_cli(capsys, "eval", done_run.path)
     assert code == 0, err
     m = json.loads(done_run.metrics_path.read_text())
     assert m["ate"]["rmse_m"] == pytest.approx(0.0, abs=1e-6)  # ground-truth poses
@@ -144,27 +138,29 @@ def test_truncated_lpips_weight_files(tmp_path, monkeypatch, capsys):
 
 def test_exit_codes_tell_usage_data_and_internal_errors_apart(tiny_sequence, monkeypatch,
                                                               capsys):
-    assert _cli(capsys, "info", "--no-such-option", tiny_sequence)[0] == 2
-    assert _cli(capsys, "show", tiny_sequence, "--frame", "99", "--out", "x.png")[0] == 2
-    assert _cli(capsys, "info", Path(tiny_sequence) / "missing")[0] == 3
+    code, _, err = run_cli(capsys, "info", "--no-such-option", tiny_sequence)
+    assert_cli_error(code, err, 2, "--no-such-option")
+    code, _, err = run_cli(capsys, "show", tiny_sequence, "--frame", "99", "--out", "x.png")
+    assert_cli_error(code, err, 2, "--frame", "99")
+    code, _, err = run_cli(capsys, "info", Path(tiny_sequence) / "missing")
+    assert_cli_error(code, err, 3, Path(tiny_sequence) / "missing")
 
     def bug(*_args, **_kwargs):
         raise ValueError("shape mismatch in a kernel")
 
     monkeypatch.setattr("egs_bench.datasets.inspect.sequence_summary", bug)
-    code, err = _cli(capsys, "info", tiny_sequence, "--no-check")
-    assert code == 70 and err.startswith("internal error: ValueError: shape mismatch")
-    assert "a bug in egs-bench" in err and len(err.strip().splitlines()) == 1
+    code, _, err = run_cli(capsys, "info", tiny_sequence, "--no-check")
+    line = assert_cli_error(code, err, 70, "ValueError: shape mismatch", "a bug in egs-bench")
+    assert line.startswith("internal error: ValueError: shape mismatch")
 
 
 def test_eventreplica_default_resize_keeps_the_aspect_ratio(tmp_path, capsys):
     """Case 6: a 4:3 input (7-Scenes-like) is no longer squashed to Replica's 459x260."""
-    from plane_scene import PlaneSource
-
     from egs_bench.color import linear_to_srgb8
     from egs_bench.datasets.replica import export_replica_layout
     from egs_bench.datasets.sequence import Sequence
     from egs_bench.geometry import Intrinsics
+    from tests.helpers.plane_scene import PlaneSource
 
     src = PlaneSource(width=160, height=120)
     frames = [src.render(t) for t in (0, 33_333, 66_667)]
@@ -172,7 +168,7 @@ def test_eventreplica_default_resize_keeps_the_aspect_ratio(tmp_path, capsys):
                                   [f.depth for f in frames], [f.pose for f in frames],
                                   tmp_path / "kinect", intrinsics=src.intrinsics,
                                   image_format="png")
-    code, err = _cli(capsys, "make-eventreplica", "--input", scene, "--out", tmp_path / "out",
+    code, _, err = run_cli(capsys, "make-eventreplica", "--input", scene, "--out", tmp_path / "out",
                      "--width", "112", "--height", "64", "--upsample", "2", "--no-progress")
     assert code == 0, err
     seq = Sequence.open(tmp_path / "out")

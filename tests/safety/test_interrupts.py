@@ -185,10 +185,9 @@ def test_a_run_with_a_swallowed_signal_stops_at_the_next_frame(tmp_path: Path, r
                                                                capsys, monkeypatch) -> None:
     """The SLAM loop checks once per frame: a signal swallowed while frame 1 was tracked stops
     the run before frame 2, marked interrupted with the trajectory of what it processed."""
-    from safety_helpers import QUICK_RUN
-
     from egs_bench.slam.components import SlamComponents
     from egs_bench.slam.tracker import GradientTracker
+    from tests.helpers.safety_helpers import QUICK_RUN
 
     tracked: list[int] = []
 
@@ -217,10 +216,9 @@ def test_a_signal_swallowed_in_map_initialisation_stops_it(tmp_path: Path, room_
                                                            capsys, monkeypatch) -> None:
     """Map initialisation runs minutes without reaching the frame loop: it checks every
     iteration, so a signal swallowed during its first iteration stops it at the second."""
-    from safety_helpers import QUICK_RUN
-
     from egs_bench.slam.components import SlamComponents
     from egs_bench.slam.mapper import Mapper
+    from tests.helpers.safety_helpers import QUICK_RUN
 
     mappers: list[Mapper] = []
 

@@ -11,19 +11,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from safety_helpers import QUICK_RUN
 
-from egs_bench.cli import main
 from egs_bench.datasets.sequence import Sequence
 from egs_bench.errors import OutputError, UnwritableOutputError
 from egs_bench.fileio import atomic_path
 from egs_bench.images import read_ldr_image, write_ldr_image
 from egs_bench.outputs import prepare_output
-
-
-def _cli(capsys, *argv: str | Path) -> tuple[int, str]:
-    code = main([str(a) for a in argv])
-    return code, capsys.readouterr().err
+from tests.helpers.cli import assert_cli_error, run_cli
+from tests.helpers.safety_helpers import QUICK_RUN
 
 
 def _user_folder(path: Path) -> Path:
@@ -68,27 +63,27 @@ def test_file_outputs_never_replace_a_folder(command, overwrite, tmp_path, tiny_
         "leaderboard": ["leaderboard", done_run.path.parent, "-o", target,
                         "--metrics", "ate", "--no-eval"],
     }[command] + (["--overwrite"] if overwrite else [])
-    code, err = _cli(capsys, *argv)
-    assert code == 2, err
+    code, _, err = run_cli(capsys, *argv)
     expected = ("is a folder: --overwrite only replaces" if overwrite
                 else "already exists and is a folder; choose another")
-    assert f"{target}: {expected}" in err and len(err.strip().splitlines()) == 1
+    assert_cli_error(code, err, 2, f"{target}: {expected}")
     assert target.is_dir() and _snapshot(target) == before
 
 
 def test_overwrite_replaces_only_an_output_of_the_same_kind(tmp_path, tiny_sequence, capsys):
     notes = tmp_path / "panel.png"
     notes.write_text("not an image, my notes\n")
-    code, err = _cli(capsys, "show", tiny_sequence, "--frame", "1", "--out", notes,
-                     "--overwrite")
-    assert code == 2 and "is not a PNG image: --overwrite only replaces a PNG image" in err
+    code, _, err = run_cli(capsys, "show", tiny_sequence, "--frame", "1", "--out", notes,
+                           "--overwrite")
+    assert_cli_error(code, err, 2, f"{notes}: is not a PNG image: --overwrite only replaces a PNG")
     assert notes.read_text() == "not an image, my notes\n"
     png = tmp_path / "old.png"
     write_ldr_image(png, np.zeros((4, 4, 3), np.uint8))
-    assert _cli(capsys, "show", tiny_sequence, "--frame", "1", "--out", png)[0] == 2
+    code, _, err = run_cli(capsys, "show", tiny_sequence, "--frame", "1", "--out", png)
+    assert_cli_error(code, err, 2, f"{png}: already exists; pass --overwrite")
     assert read_ldr_image(png).shape == (4, 4, 3)  # kept without --overwrite
-    assert _cli(capsys, "show", tiny_sequence, "--frame", "1", "--out", png,
-                "--overwrite")[0] == 0
+    assert run_cli(capsys, "show", tiny_sequence, "--frame", "1", "--out", png,
+                   "--overwrite")[0] == 0
     assert read_ldr_image(png).shape[1] > 300  # the panel replaced it
 
 
@@ -114,14 +109,14 @@ def test_run_into_a_finished_run_needs_overwrite_and_keeps_user_files(tmp_path, 
                                                                       capsys):
     out = tmp_path / "run"
     argv = ["run", "--method", "monogs", "--seq", room_sequence, "--out", out, *QUICK_RUN]
-    assert _cli(capsys, *argv)[0] == 0
-    assert _cli(capsys, "eval", out)[0] == 0
+    assert run_cli(capsys, *argv)[0] == 0
+    assert run_cli(capsys, "eval", out)[0] == 0
     (out / "my_notes.txt").write_text("keep me\n")
     before = _snapshot(out)
-    code, err = _cli(capsys, *argv)
-    assert code == 2 and f"{out}: already exists; pass --overwrite to replace it" in err
+    code, _, err = run_cli(capsys, *argv)
+    assert_cli_error(code, err, 2, f"{out}: already exists; pass --overwrite to replace it")
     assert _snapshot(out) == before  # metrics, renders, map: all still there
-    code, err = _cli(capsys, *argv, "--overwrite")
+    code, _, err = run_cli(capsys, *argv, "--overwrite")
     assert code == 0, err
     assert not (out / "metrics.json").exists()  # the old run's evaluation went with it
     assert (out / "my_notes.txt").read_text() == "keep me\n"  # not written by a run: kept
@@ -132,9 +127,9 @@ def test_run_out_must_be_a_run_folder(tmp_path, tiny_sequence, capsys):
     user = _user_folder(tmp_path / "docs")
     before = _snapshot(user)
     for extra in ([], ["--overwrite"]):
-        code, err = _cli(capsys, "run", "--method", "monogs", "--seq", tiny_sequence, "--out",
-                         user, *QUICK_RUN, *extra)
-        assert code == 2 and "has no readable run.yaml" in err, err
+        code, _, err = run_cli(capsys, "run", "--method", "monogs", "--seq", tiny_sequence,
+                               "--out", user, *QUICK_RUN, *extra)
+        assert_cli_error(code, err, 2, user, "has no readable run.yaml")
     assert _snapshot(user) == before
 
 
@@ -144,9 +139,10 @@ def test_make_synthetic_never_replaces_the_current_directory(tmp_path, monkeypat
     work = _user_folder(tmp_path / "work")
     monkeypatch.chdir(work)
     before = _snapshot(work)
-    code, err = _cli(capsys, "make-synthetic", "--scene", "office", "--out", ".", "--frames",
-                     "2", "--width", "32", "--height", "24", "--overwrite", "--no-progress")
-    assert code == 2 and "is the current directory or one of its parents" in err
+    code, _, err = run_cli(capsys, "make-synthetic", "--scene", "office", "--out", ".",
+                           "--frames", "2", "--width", "32", "--height", "24", "--overwrite",
+                           "--no-progress")
+    assert_cli_error(code, err, 2, "is the current directory or one of its parents")
     assert _snapshot(work) == before and sorted(os.listdir(work)) == ["notes.txt", "sub"]
 
 
@@ -160,11 +156,10 @@ def test_make_eventreplica_never_replaces_its_input(tmp_path, capsys):
                                   image_format="png")
     before = _snapshot(scene)
     for out in (scene, tmp_path):  # the input itself, a folder containing it
-        code, err = _cli(capsys, "make-eventreplica", "--input", scene, "--out", out,
-                         "--overwrite", "--width", "32", "--height", "24", "--no-progress")
-        assert code == 2, err
-        assert ("is an input of this command" in err if out == scene
-                else f"contains the input {scene}" in err)
+        code, _, err = run_cli(capsys, "make-eventreplica", "--input", scene, "--out", out,
+                               "--overwrite", "--width", "32", "--height", "24", "--no-progress")
+        assert_cli_error(code, err, 2, out, "is an input of this command" if out == scene
+                         else f"contains the input {scene}")
     assert _snapshot(scene) == before
 
 
@@ -172,15 +167,16 @@ def test_generated_sequences_are_replaced_only_when_clean_and_asked(tmp_path, ca
     out = tmp_path / "seq"
     argv = ["make-synthetic", "--scene", "office", "--out", out, "--frames", "2", "--width",
             "32", "--height", "24", "--no-progress"]
-    assert _cli(capsys, *argv)[0] == 0
+    assert run_cli(capsys, *argv)[0] == 0
     first = _snapshot(out)
-    code, err = _cli(capsys, *argv, "--seed", "3")
-    assert code == 2 and "already exists; pass --overwrite" in err and _snapshot(out) == first
+    code, _, err = run_cli(capsys, *argv, "--seed", "3")
+    assert_cli_error(code, err, 2, f"{out}: already exists; pass --overwrite")
+    assert _snapshot(out) == first
     (out / "notes.txt").write_text("mine\n")
-    code, err = _cli(capsys, *argv, "--seed", "3", "--overwrite")
-    assert code == 2 and "also holds files egs-bench did not write (notes.txt)" in err
+    code, _, err = run_cli(capsys, *argv, "--seed", "3", "--overwrite")
+    assert_cli_error(code, err, 2, out, "also holds files egs-bench did not write (notes.txt)")
     (out / "notes.txt").unlink()
-    assert _cli(capsys, *argv, "--seed", "3", "--overwrite")[0] == 0
+    assert run_cli(capsys, *argv, "--seed", "3", "--overwrite")[0] == 0
     assert _snapshot(out) != first and len(Sequence.open(out)) == 2
     assert [p.name for p in tmp_path.iterdir()] == ["seq"]  # no staging folder left
 
@@ -197,9 +193,9 @@ def test_protected_paths_even_with_overwrite(tmp_path, monkeypatch):
 def test_output_under_a_file_is_a_clear_data_error(tmp_path, tiny_sequence, capsys):
     blocker = tmp_path / "file.txt"
     blocker.write_text("x")
-    code, err = _cli(capsys, "show", tiny_sequence, "--frame", "1", "--out",
-                     blocker / "panel.png")
-    assert code == 3 and f"{blocker}/panel.png: {blocker} is a file, not a folder" in err
+    code, _, err = run_cli(capsys, "show", tiny_sequence, "--frame", "1", "--out",
+                           blocker / "panel.png")
+    assert_cli_error(code, err, 3, f"{blocker}/panel.png: {blocker} is a file, not a folder")
 
 
 @pytest.mark.skipif(os.geteuid() == 0, reason="root ignores folder permissions")
@@ -208,8 +204,9 @@ def test_read_only_output_folder_is_a_clear_data_error(tmp_path, tiny_sequence, 
     ro.mkdir()
     ro.chmod(0o500)
     try:
-        code, err = _cli(capsys, "show", tiny_sequence, "--frame", "1", "--out", ro / "p.png")
-        assert code == 3 and "permission denied" in err
+        code, _, err = run_cli(capsys, "show", tiny_sequence, "--frame", "1", "--out",
+                               ro / "p.png")
+        assert_cli_error(code, err, 3, ro, "permission denied")
         with pytest.raises(UnwritableOutputError):
             prepare_output(ro / "seq", "sequence")
     finally:
@@ -233,7 +230,7 @@ def test_demo_rewrites_only_its_own_outputs(tmp_path, monkeypatch):
 
 
 def _plane(tmp_path: Path) -> Path:
-    from plane_scene import make_plane_sequence
+    from tests.helpers.plane_scene import make_plane_sequence
 
     return make_plane_sequence(tmp_path / "seq", frames=2)
 
@@ -241,11 +238,12 @@ def _plane(tmp_path: Path) -> Path:
 def test_overwrite_never_replaces_a_file_inside_an_input_folder(seq_copy, capsys):
     frame = seq_copy / "rgb" / "000001.png"
     before = frame.read_bytes()
-    code, err = _cli(capsys, "show", seq_copy, "--frame", "1", "--out", frame, "--overwrite")
-    assert code == 2 and f"is inside the input {seq_copy}; refusing to replace it" in err
+    code, _, err = run_cli(capsys, "show", seq_copy, "--frame", "1", "--out", frame,
+                           "--overwrite")
+    assert_cli_error(code, err, 2, frame, f"is inside the input {seq_copy}; refusing to replace it")
     assert frame.read_bytes() == before
     new = seq_copy / "panel.png"  # a new file next to the inputs replaces nothing: allowed
-    assert _cli(capsys, "show", seq_copy, "--frame", "1", "--out", new)[0] == 0
+    assert run_cli(capsys, "show", seq_copy, "--frame", "1", "--out", new)[0] == 0
 
 
 @pytest.mark.parametrize("name", ["status.json", "000012.png", "map", "trajectory.txt"])

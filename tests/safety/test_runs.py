@@ -13,18 +13,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from safety_helpers import QUICK_RUN, python_subprocess, wait_for
 
-from egs_bench.cli import main
 from egs_bench.errors import InputError, OutputError
 from egs_bench.eval.evaluate import evaluate_run
 from egs_bench.runs import folder as folder_mod
 from egs_bench.runs.folder import RunFolder
-
-
-def _cli(capsys, *argv: str | Path) -> tuple[int, str]:
-    code = main([str(a) for a in argv])
-    return code, capsys.readouterr().err
+from tests.helpers.cli import assert_cli_error, run_cli
+from tests.helpers.safety_helpers import QUICK_RUN, python_subprocess, wait_for
 
 
 def _status(run_dir: Path) -> dict:
@@ -48,12 +43,12 @@ def test_a_second_writer_is_refused_and_a_killed_run_reads_as_interrupted(
     proc = _start_slow_run(room_sequence, out, tmp_path)
     try:
         # case 3: a second run into the same folder while the first is running
-        code, err = _cli(capsys, "run", "--method", "monogs", "--seq", room_sequence, "--out",
-                         out, *QUICK_RUN, "--overwrite")
-        assert code == 2, err
-        assert f"is being written by another egs-bench process (pid {proc.pid} on " in err
-        code, err = _cli(capsys, "eval", out)
-        assert code == 3 and f"run is still running (pid {proc.pid} on " in err
+        code, _, err = run_cli(capsys, "run", "--method", "monogs", "--seq", room_sequence,
+                               "--out", out, *QUICK_RUN, "--overwrite")
+        assert_cli_error(code, err, 2, out,
+                         f"is being written by another egs-bench process (pid {proc.pid} on ")
+        code, _, err = run_cli(capsys, "eval", out)
+        assert_cli_error(code, err, 3, out, f"run is still running (pid {proc.pid} on ")
         # case 8: SIGKILL (no chance to clean up) leaves status.json at "running"
         proc.send_signal(signal.SIGKILL)
         proc.wait(30)
@@ -63,14 +58,14 @@ def test_a_second_writer_is_refused_and_a_killed_run_reads_as_interrupted(
     assert _status(out)["state"] == "running"
     status = RunFolder.open(out).read_status()
     assert status.state == "interrupted" and "stopped without finishing" in status.reason
-    code, err = _cli(capsys, "eval", out)
-    assert code == 3 and "run was interrupted" in err
-    assert "before it wrote trajectory.txt: nothing to evaluate" in err
-    code, err = _cli(capsys, "run", "--method", "monogs", "--seq", room_sequence, "--out", out,
-                     *QUICK_RUN)
-    assert code == 2 and "already exists; pass --overwrite" in err
-    code, err = _cli(capsys, "run", "--method", "monogs", "--seq", room_sequence, "--out", out,
-                     *QUICK_RUN, "--overwrite")
+    code, _, err = run_cli(capsys, "eval", out)
+    assert_cli_error(code, err, 3, out, "run was interrupted",
+                     "before it wrote trajectory.txt: nothing to evaluate")
+    code, _, err = run_cli(capsys, "run", "--method", "monogs", "--seq", room_sequence,
+                           "--out", out, *QUICK_RUN)
+    assert_cli_error(code, err, 2, f"{out}: already exists; pass --overwrite")
+    code, _, err = run_cli(capsys, "run", "--method", "monogs", "--seq", room_sequence,
+                           "--out", out, *QUICK_RUN, "--overwrite")
     assert code == 0, err
     assert RunFolder.open(out).read_status().state == "done"
 
@@ -158,17 +153,16 @@ def test_library_create_is_locked_too(tmp_path, tiny_sequence):
 
 def test_max_frames_zero_and_an_event_method_without_events_are_refused(
         seq_copy, tmp_path, capsys):
-    code, err = _cli(capsys, "run", "--method", "monogs", "--seq", seq_copy, "--out",
-                     tmp_path / "r0", "--max-frames", "0", "--quiet")
-    assert code == 2 and "Invalid value for '--max-frames'" in err
-    assert "greater than or equal to 1" in err and not (tmp_path / "r0").exists()
+    code, _, err = run_cli(capsys, "run", "--method", "monogs", "--seq", seq_copy, "--out",
+                           tmp_path / "r0", "--max-frames", "0", "--quiet")
+    assert_cli_error(code, err, 2, "Invalid value for '--max-frames'", "greater than or equal to 1")
+    assert not (tmp_path / "r0").exists()
     meta = seq_copy / "meta.yaml"
     meta.write_text(meta.read_text().replace("has_events: true", "has_events: false"))
-    code, err = _cli(capsys, "run", "--method", "egs", "--seq", seq_copy, "--out",
-                     tmp_path / "r1", *QUICK_RUN)
-    assert code == 3, err
-    assert (f"{meta}: has_events is false, but the method uses events (event_tracking, "
-            "event_mapping)") in err
+    code, _, err = run_cli(capsys, "run", "--method", "egs", "--seq", seq_copy, "--out",
+                           tmp_path / "r1", *QUICK_RUN)
+    assert_cli_error(code, err, 3, f"{meta}: has_events is false, but the method uses events "
+                     "(event_tracking, event_mapping)")
     assert not (tmp_path / "r1").exists()
 
 
@@ -180,9 +174,9 @@ def test_user_methods_without_overwrite_support_are_told_so(tmp_path, tiny_seque
         "        raise AssertionError('must not run')\n"
         "METHOD = M()\n")
     monkeypatch.syspath_prepend(str(tmp_path))
-    code, err = _cli(capsys, "run", "--method", "plain_method:METHOD", "--seq", tiny_sequence,
-                     "--out", tmp_path / "r", "--overwrite")
-    assert code == 2 and "does not support --overwrite" in err
+    code, _, err = run_cli(capsys, "run", "--method", "plain_method:METHOD", "--seq", tiny_sequence,
+                           "--out", tmp_path / "r", "--overwrite")
+    assert_cli_error(code, err, 2, "plain", "does not support --overwrite")
     assert np.all([not (tmp_path / "r").exists()])
 
 
@@ -190,12 +184,11 @@ def test_a_signal_surfacing_inside_numba_exits_as_an_interruption(monkeypatch, c
     """numba turns a signal handler's exception into ``SystemError: ... returned a result with
     an exception set`` (the interruption as its cause): the CLI must exit 128 + 15 with one
     line, not report an internal error (70)."""
-    from interrupt_helpers import raise_sigterm_as_numba_does
-
     from egs_bench.datasets import synthetic
+    from tests.helpers.interrupt_helpers import raise_sigterm_as_numba_does
 
     monkeypatch.setattr(synthetic, "list_scenes", raise_sigterm_as_numba_does)
-    code, err = _cli(capsys, "list-scenes")
+    code, _, err = run_cli(capsys, "list-scenes")
     assert code == 143, err
     assert err.strip() == "interrupted by SIGTERM"
 

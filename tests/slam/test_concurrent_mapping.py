@@ -42,7 +42,7 @@ PARTS = SlamComponents(keyframes=EverySecondFrame)
 @pytest.fixture(scope="module")
 def six_frames(tmp_path_factory) -> Path:
     """The plane scene, 6 frames: keyframes at frames 2 and 4 under :class:`EverySecondFrame`."""
-    from plane_scene import make_plane_sequence
+    from tests.helpers.plane_scene import make_plane_sequence
 
     return make_plane_sequence(tmp_path_factory.mktemp("six") / "plane", frames=6)
 

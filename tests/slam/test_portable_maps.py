@@ -29,6 +29,7 @@ from egs_bench.slam.map_export import (
     render_map_view,
     view_camera,
 )
+from tests.helpers.cli import assert_cli_error
 
 runner = CliRunner()
 FRAMES = 5
@@ -301,11 +302,7 @@ def test_bad_inputs_one_line_each(egs_run, tmp_path, capsys) -> None:
          "'hdr' is not one of 'auto', 'linear', 'display'"),
     ]
     for argv, expected_code, message in cases:
-        code = main(argv)
-        err = capsys.readouterr().err
-        assert code == expected_code, (argv, err)
-        assert message in err, (argv, err)
-        assert len(err.strip().splitlines()) == 1, err
+        assert_cli_error(main(argv), capsys.readouterr().err, expected_code, message)
     assert not Path(png).exists()
 
 
@@ -450,8 +447,7 @@ def test_render_map_intrinsics_options(egs_run, tmp_path, capsys) -> None:
             view_camera(cam, **kwargs)
     from egs_bench.cli import main
 
-    assert main(["render-map", str(egs_run.path), "--fx", "50", "--fov", "60", "-o",
-                 str(tmp_path / "x.png")]) == 2
-    err = capsys.readouterr().err
-    assert "give --fov or --fx/--fy" in err and len(err.strip().splitlines()) == 1
+    code = main(["render-map", str(egs_run.path), "--fx", "50", "--fov", "60", "-o",
+                 str(tmp_path / "x.png")])
+    assert_cli_error(code, capsys.readouterr().err, 2, "give --fov or --fx/--fy")
     assert not (tmp_path / "x.png").exists()

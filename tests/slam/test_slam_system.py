@@ -24,6 +24,7 @@ from egs_bench.slam.components import SlamComponents
 from egs_bench.slam.config import cpu_preset
 from egs_bench.slam.runner import RunSettings, run_slam
 from egs_bench.slam.tracker import GradientTracker, TrackRequest, TrackResult
+from tests.helpers.cli import assert_cli_error, run_cli
 
 # Small but complete: every stage runs (init mapping, tracking with events, keyframe mapping).
 FAST = dict(resolution_scale=1.0, init_iters=20, tracking_iters=20, mapping_iters=3,
@@ -262,16 +263,15 @@ def test_registry_builtins_import_path_and_errors(tmp_path: Path, monkeypatch) -
         cpu_preset().replace(blur_model=False).validate()  # events need sub-poses
 
 
-def test_cli_list_methods_and_bad_method() -> None:
+def test_cli_list_methods_and_bad_method(capsys) -> None:
     runner = CliRunner()
     for argv in (["list-methods"], ["list", "methods"]):
         res = runner.invoke(app, argv)
         assert res.exit_code == 0 and "monogs" in res.output and "egs-no-crf" in res.output
-    res = runner.invoke(app, ["list", "nonsense"])
-    assert res.exit_code != 0 and "nonsense" in str(res.exception)
-    res = runner.invoke(app, ["run", "--method", "nope", "--seq", "x"])
-    assert isinstance(res.exception, ConfigError)
-    assert "unknown method 'nope'; available: egs" in str(res.exception)
+    code, _, err = run_cli(capsys, "list", "nonsense")
+    assert_cli_error(code, err, 2, "'nonsense' is not one of 'methods', 'scenes'")
+    code, _, err = run_cli(capsys, "run", "--method", "nope", "--seq", "x")
+    assert_cli_error(code, err, 2, "unknown method 'nope'; available: egs")
 
 
 @pytest.mark.parametrize("options,anchored", [

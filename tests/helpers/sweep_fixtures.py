@@ -3,7 +3,7 @@
 The fake methods are real method objects (name, description, run) that write complete run
 folders in milliseconds: the estimate is the ground truth plus seeded noise of a known size,
 the renders are the sharp frames plus seeded noise. Worker processes import them by import path
-(``sweep_fixtures:GOOD``), so the tests put this folder on ``PYTHONPATH``.
+(``tests.helpers.sweep_fixtures:GOOD``), so the tests put the repository root on ``PYTHONPATH``.
 
 Environment knobs (read inside the worker process): ``FAKE_SLEEP_S`` seconds to sleep before
 writing (for kill and timeout tests), ``FAKE_FAIL`` = ``<method>:<seed>`` pairs (comma
@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-HERE = Path(__file__).resolve().parent
+REPO_ROOT = Path(__file__).resolve().parents[2]
 WIDTH, HEIGHT, FRAME_US = 48, 32, 33_333
 
 
@@ -101,9 +101,14 @@ BAD = FakeMethod("bad", noise_m=0.03, render_sd=12.0)
 FAKE_EGS = FakeMethod("egs", noise_m=0.01, render_sd=4.0)
 FAKE_MONOGS = FakeMethod("monogs", noise_m=0.03, render_sd=12.0)
 
+# the import paths (``module:attribute``) by which sweeps and worker processes name them
+GOOD_PATH, BAD_PATH = f"{__name__}:GOOD", f"{__name__}:BAD"
+FAKE_EGS_PATH, FAKE_MONOGS_PATH = f"{__name__}:FAKE_EGS", f"{__name__}:FAKE_MONOGS"
+
 
 def worker_env(monkeypatch) -> None:
-    """Make this folder importable by worker processes and keep caches in the test tree."""
+    """Make this checkout's ``tests`` package importable by worker processes and keep caches in
+    the test tree."""
     path = os.environ.get("PYTHONPATH", "")
-    monkeypatch.setenv("PYTHONPATH", os.pathsep.join(p for p in (str(HERE), path) if p))
+    monkeypatch.setenv("PYTHONPATH", os.pathsep.join(p for p in (str(REPO_ROOT), path) if p))
     monkeypatch.setenv("OMP_WAIT_POLICY", "PASSIVE")

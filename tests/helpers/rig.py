@@ -13,7 +13,6 @@ from pathlib import Path
 
 import numpy as np
 import yaml
-from bags import BagBuilder
 
 from egs_bench.datasets.sequence import Sequence
 from egs_bench.datasets.synthetic import make_synthetic
@@ -22,6 +21,7 @@ from egs_bench.datasets.synthetic.scene import pack_scene
 from egs_bench.datasets.synthetic.scenes import build_scene
 from egs_bench.datasets.synthetic.trajectory import HandheldTrajectory
 from egs_bench.geometry import Intrinsics, invert_pose, pose_from_tq
+from tests.helpers.bags import BagBuilder
 
 #: the DAVIS clock of the recording = the synthetic sequence's clock + this
 T0_US = 1_700_000_000_000_000
