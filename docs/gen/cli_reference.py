@@ -7,6 +7,7 @@ line and a table of its arguments and options (type, default, help).
 
 from __future__ import annotations
 
+import re
 from collections.abc import Iterator
 from typing import Any
 
@@ -42,13 +43,14 @@ def _type(param: Any, ctx: Context) -> str:
     if param.param_type_name == "option" and param.is_flag:
         return "flag"
     record = param.get_help_record(ctx)
-    metavar = record[0].rsplit(" ", 1)[-1] if record else ""
+    match = re.search(r"<([^>]*)>", record[0]) if record else None  # "-s, --seq <str>"
+    metavar = match.group(1) if match else (record[0].rsplit(" ", 1)[-1] if record else "")
     bounds = []
     if getattr(param, "min", None) is not None:
         bounds.append(f">= {param.min}")
     if getattr(param, "max", None) is not None:
         bounds.append(f"<= {param.max}")
-    text = metavar.strip("<>")
+    text = metavar
     if bounds:
         text = text.replace(" range", "") + ", " + ", ".join(bounds)
     return f"`{text}`" + (", repeatable" if param.multiple else "")

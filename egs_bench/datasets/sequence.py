@@ -51,7 +51,8 @@ FRAME_COLUMN_DOCS = {
              "may be absent)",
 }
 #: the keys of ``meta.yaml`` (:data:`REQUIRED_META` required, the others optional) and what
-#: each holds; :func:`read_meta` checks them
+#: each holds; :func:`read_meta` checks them. A writer may add records of its own (an importer's
+#: settings, say), which readers ignore.
 META_KEYS = {
     "width": "image width, pixels (integer)",
     "height": "image height, pixels (integer)",
@@ -63,15 +64,22 @@ META_KEYS = {
     "format_version": f"version of this folder format (written: {FORMAT_VERSION})",
     "num_frames": "frames listed in frames.csv (checked when present)",
     "name": "the sequence's name (default: the folder's name)",
+    "source": "where the frames come from (\"real\" for recordings; otherwise what generated "
+              "them)",
+    "pixel_convention": "where a pixel's centre lies: (u + 0.5, v + 0.5) for pixel (u, v)",
+    "distortion": "lens distortion of the images (zeros or a note: they are undistorted)",
     "has_events": "whether events.h5 exists (default true)",
     "eps": "offset of the log intensity log(luma + eps) the events are defined on (> 0)",
     "event_thresholds": "contrast thresholds {pos: C+, neg: C-} in log intensity (> 0)",
     "sigma": "std of the per-pixel threshold mismatch of the event simulator, log units (>= 0)",
     "refractory_us": "refractory period of the event simulator, microseconds (>= 0)",
+    "noise": "noise settings of the event simulator, e.g. {shot_noise_rate_hz}",
+    "event_seed": "random seed of the event simulator",
     "exposure_us": "exposure time, microseconds (> 0)",
     "frame_rate": "frames per second (> 0)",
     "crf": "the camera response: a mapping describing the LDR response of the rgb images",
     "generator": "what wrote the folder: {name, version} and the generator's own settings",
+    "sampling": "temporal sampling of the generator's latent source: its settings and statistics",
 }
 #: events may trail the last exposure end by this much (a sensor records continuously)
 EVENT_TIME_MARGIN_US = 1_000_000
