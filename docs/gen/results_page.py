@@ -26,7 +26,7 @@ from egs_bench.fileio import read_yaml_mapping
 MANIFEST = "results_manifest.yaml"
 #: metric column -> (heading, decimals)
 METRICS = {"ate_cm": ("ATE cm", 2), "psnr_db": ("PSNR dB", 2), "ssim": ("SSIM", 3),
-           "lpips": ("LPIPS", 3)}
+           "lpips": ("LPIPS", 3), "fps": ("FPS", 3)}
 REQUIRED = ("title", "date", "machine", "command", "group_by")
 
 
