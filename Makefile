@@ -27,7 +27,7 @@ demo: setup
 	$(BIN)/egs-bench demo --out demo_out
 
 lint: setup
-	$(BIN)/ruff check egs_bench tests benchmarks
+	$(BIN)/ruff check egs_bench tests benchmarks docs/gen
 	$(BIN)/mypy
 
 test: setup lint
