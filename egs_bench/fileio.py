@@ -59,6 +59,24 @@ def read_text(path: str | Path, what: str = "file") -> str:
         raise InputError(path, f"cannot read ({exc.strerror or exc})") from None
 
 
+def read_yaml_mapping(path: str | Path, what: str = "file") -> dict[str, Any]:
+    """The YAML mapping stored in ``path``.
+
+    Raises:
+        InputError: as :func:`read_text`, or not valid YAML, or not a mapping.
+    """
+    import yaml
+
+    path = Path(path)
+    try:
+        data = yaml.safe_load(read_text(path, what))
+    except yaml.YAMLError as exc:
+        raise InputError(path, f"not valid YAML ({' '.join(str(exc).split())})") from None
+    if not isinstance(data, dict):
+        raise InputError(path, "expected a YAML mapping")
+    return data
+
+
 def ensure_parent(path: Path) -> None:
     """Create ``path``'s parent folders; a folder that cannot be created is reported as an
     :class:`UnwritableOutputError` naming it."""

@@ -2,7 +2,9 @@
 
 ```
 <seq>/meta.yaml               calibration, generator, event thresholds, exposure, camera response
+                              (keys: :data:`META_KEYS`)
 <seq>/frames.csv              index, t_start_us, t_end_us, rgb, depth, sharp
+                              (columns: :data:`FRAME_COLUMN_DOCS`)
 <seq>/rgb/%06d.png            observed (blurred) 8-bit sRGB frames
 <seq>/depth/%06d.png          depth at exposure end, uint16, metres * depth_scale (0 = invalid)
 <seq>/sharp/%06d.png          sharp ground truth at exposure end (synthetic data only)
@@ -37,6 +39,48 @@ from egs_bench.images import (
 FORMAT_VERSION = 1
 FRAME_COLUMNS = ("index", "t_start_us", "t_end_us", "rgb", "depth", "sharp")
 REQUIRED_META = ("width", "height", "fx", "fy", "cx", "cy", "depth_scale")
+#: what each ``frames.csv`` column holds (one row per frame; the reference page lists these)
+FRAME_COLUMN_DOCS = {
+    "index": "frame number: 0, 1, 2, ... in order",
+    "t_start_us": "exposure start, integer microseconds",
+    "t_end_us": "exposure end, integer microseconds, after t_start_us and at most the next "
+                "frame's t_start_us; the frame's timestamp",
+    "rgb": "observed image, path relative to the folder",
+    "depth": "depth map at the exposure end, path relative to the folder",
+    "sharp": "sharp ground-truth image, path relative to the folder (empty: none; the column "
+             "may be absent)",
+}
+#: the keys of ``meta.yaml`` (:data:`REQUIRED_META` required, the others optional) and what
+#: each holds; :func:`read_meta` checks them. A writer may add records of its own (an importer's
+#: settings, say), which readers ignore.
+META_KEYS = {
+    "width": "image width, pixels (integer)",
+    "height": "image height, pixels (integer)",
+    "fx": "focal length along x, pixels",
+    "fy": "focal length along y, pixels",
+    "cx": "principal point x, pixels (inside the image)",
+    "cy": "principal point y, pixels (inside the image)",
+    "depth_scale": "depth PNG value per metre (e.g. 5000: 1 unit = 0.2 mm)",
+    "format_version": f"version of this folder format (written: {FORMAT_VERSION})",
+    "num_frames": "frames listed in frames.csv (checked when present)",
+    "name": "the sequence's name (default: the folder's name)",
+    "source": "where the frames come from (\"real\" for recordings; otherwise what generated "
+              "them)",
+    "pixel_convention": "where a pixel's centre lies: (u + 0.5, v + 0.5) for pixel (u, v)",
+    "distortion": "lens distortion of the images (zeros or a note: they are undistorted)",
+    "has_events": "whether events.h5 exists (default true)",
+    "eps": "offset of the log intensity log(luma + eps) the events are defined on (> 0)",
+    "event_thresholds": "contrast thresholds {pos: C+, neg: C-} in log intensity (> 0)",
+    "sigma": "std of the per-pixel threshold mismatch of the event simulator, log units (>= 0)",
+    "refractory_us": "refractory period of the event simulator, microseconds (>= 0)",
+    "noise": "noise settings of the event simulator, e.g. {shot_noise_rate_hz}",
+    "event_seed": "random seed of the event simulator",
+    "exposure_us": "exposure time, microseconds (> 0)",
+    "frame_rate": "frames per second (> 0)",
+    "crf": "the camera response: a mapping describing the LDR response of the rgb images",
+    "generator": "what wrote the folder: {name, version} and the generator's own settings",
+    "sampling": "temporal sampling of the generator's latent source: its settings and statistics",
+}
 #: events may trail the last exposure end by this much (a sensor records continuously)
 EVENT_TIME_MARGIN_US = 1_000_000
 

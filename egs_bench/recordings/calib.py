@@ -45,7 +45,7 @@ import numpy as np
 import yaml
 
 from egs_bench.errors import InputError
-from egs_bench.fileio import read_text
+from egs_bench.fileio import read_yaml_mapping
 from egs_bench.recordings.camera import CameraModel
 
 #: a rotation whose R^T R differs from I by more than this is not a rotation
@@ -161,7 +161,7 @@ def load_calib(path: str | Path) -> RecordingCalib:
             non-rotations, unknown distortion models, bad sizes).
     """
     path = Path(path)
-    raw = _read_yaml(path, "calibration file")
+    raw = read_yaml_mapping(path, "calibration file")
     known = {"event_camera", "depth_camera", "frame_camera", "T_event_depth", "T_event_frame",
              "T_body_event", "time_offsets_us", "depth_scale"}
     unknown = sorted(set(raw) - known)
@@ -260,7 +260,7 @@ def camera_from_kalibr(path: str | Path, camera: str = "cam0") -> CameraModel:
     ``distortion_model``, ``distortion_coeffs``, ``resolution: [w, h]``), e.g. MVSEC's
     ``camchain-imucam-indoor_flying.yaml``. Kalibr uses OpenCV's pixel convention."""
     path = Path(path)
-    raw = _read_yaml(path, "Kalibr file")
+    raw = read_yaml_mapping(path, "Kalibr file")
     if camera not in raw or not isinstance(raw[camera], dict):
         raise InputError(path, f"no camera {camera!r} (found: {', '.join(map(str, raw))})")
     cam = raw[camera]
@@ -278,7 +278,7 @@ def camera_from_ros_yaml(path: str | Path) -> CameraModel:
     ``camera_matrix.data``, ``camera_model`` / ``distortion_model``,
     ``distortion_coefficients.data``), e.g. VECtor's ``*_intrinsic_results.yaml``."""
     path = Path(path)
-    raw = _read_yaml(path, "ROS calibration file")
+    raw = read_yaml_mapping(path, "ROS calibration file")
     try:
         k = [float(v) for v in raw["camera_matrix"]["data"]]
         model = raw.get("distortion_model") or raw.get("camera_model") or "plumb_bob"
@@ -287,16 +287,6 @@ def camera_from_ros_yaml(path: str | Path) -> CameraModel:
                            k[5], model=str(model), coeffs=coeffs)
     except (KeyError, TypeError, ValueError, IndexError) as exc:
         raise InputError(path, f"not a ROS camera calibration yaml ({exc})") from None
-
-
-def _read_yaml(path: Path, what: str = "file") -> dict:
-    try:
-        raw = yaml.safe_load(read_text(path, what))
-    except yaml.YAMLError as exc:
-        raise InputError(path, f"not valid YAML ({exc})") from None
-    if not isinstance(raw, dict):
-        raise InputError(path, "expected a YAML mapping")
-    return raw
 
 
 def write_calib_template(out: str | Path, *, kalibr: str | Path | None = None,

@@ -40,8 +40,8 @@ class MethodConfig:
     event_tracking: bool = True         # event loss in tracking
     event_mapping: bool = True          # event loss in mapping
     no_event_loss: bool = True          # L_NE on silent pixels
-    crf: CrfKind = "learnable"
-    crf_nodes: int = 16
+    crf: CrfKind = "learnable"         # camera response: learned curve, fixed sRGB or none
+    crf_nodes: int = 16                 # nodes of the learnable response curve
     crf_alpha: float = 0.01             # (paper)
     # Initial curve of the learnable CRF: "linear" (evenly spaced nodes, the identity; the paper
     # does not say) or "srgb". Measured on `demo` (20 frames, cpu budget): the sRGB start
@@ -76,7 +76,7 @@ class LossConfig:
 class TrackingConfig:
     """How a frame's exposure trajectory is predicted and estimated."""
 
-    motion_model: MotionModel = "constant-velocity"
+    motion_model: MotionModel = "constant-velocity"  # how a frame's start pose is predicted
     # Tracking estimates T_tau only and places T_0 on the path from the previous frame's T_tau
     # (constant velocity over the frame interval) instead of estimating both freely (paper).
     continuous_exposure: bool = False
@@ -96,8 +96,8 @@ class TrackingConfig:
     # "plateau" stop once the step / the loss's improvement has fallen below
     # convergence_tolerance (relative) for convergence_patience iterations.
     convergence: ConvergenceRule = "fixed"
-    convergence_tolerance: float = 0.1
-    convergence_patience: int = 3
+    convergence_tolerance: float = 0.1  # relative tolerance of the convergence rule
+    convergence_patience: int = 3       # iterations the rule must hold before a frame stops
 
 
 @dataclass(frozen=True)
@@ -124,8 +124,8 @@ class MappingConfig:
     kf_pose_lr_scale: float = 0.5       # (MonoGS) keyframe pose lr = 0.5 x tracking lr
     prune_opacity: float = 0.1          # periodic pruning below this opacity
     init_prune_opacity: float = 0.005   # (MonoGS init_gaussian_th)
-    lr_quats: float = 0.001
-    lr_crf: float = 0.005
+    lr_quats: float = 0.001             # Gaussian rotations' learning rate
+    lr_crf: float = 0.005               # the learnable response curve's learning rate
     point_size: float = 0.5             # new Gaussians: scale^2 = point_size x mean sq. 3-NN
     near_plane: float = 0.2             # (MonoGS)
     # Final map refinement after the last frame, one random keyframe per iteration (0 = none).
@@ -163,21 +163,21 @@ class BudgetConfig:
     window_size: int = 10               # (paper)
     pose_window: int = 5                # (paper) newest keyframes refined when refine_poses
     prune_every: int = 150              # (MonoGS) pruning period (mapping iterations)
-    prune_offset: int = 50
+    prune_offset: int = 50              # pruning runs at iterations = offset mod prune_every
     pcd_downsample_init: int = 8        # keep 1 of this many valid pixels at frame 0
     pcd_downsample: int = 16            # ... at later keyframes
     edge_blocks: int | None = 32        # (MonoGS, Replica) edge-mask grid; None = global
     lr_means: float = 0.00016 * 6       # (MonoGS, times its spatial_lr_scale 6)
     lr_colors: float = 0.0025 * 0.28209479  # (MonoGS f_dc lr expressed on colours)
-    lr_opacity: float = 0.05
-    lr_scales: float = 0.001 * 6
+    lr_opacity: float = 0.05            # (MonoGS)
+    lr_scales: float = 0.001 * 6        # (MonoGS, times its spatial_lr_scale 6)
 
 
 @dataclass(frozen=True)
 class RuntimeConfig:
     """Execution choices that do not change the result beyond floating-point effects."""
 
-    backend: Backend = "auto"
+    backend: Backend = "auto"           # rasteriser: gsplat on CUDA, numba on the CPU
 
 
 GROUPS: dict[str, type] = {
@@ -285,60 +285,104 @@ class SlamConfig:
             for f in dataclasses.fields(cls):
                 _check_type(f"{group}.{f.name}", hints[f.name],
                             getattr(getattr(self, group), f.name))
-        m, lo, t, k, mp, b = (self.method, self.loss, self.tracking, self.keyframes,
-                              self.mapping, self.budget)
-        _require(m.crf_nodes >= 2, "method.crf_nodes", "must be >= 2")
-        _require(m.crf_alpha >= 0, "method.crf_alpha", "must be >= 0")
-        _require(m.theta is None or m.theta > 0, "method.theta", "must be > 0 (or null)")
-        for name in ("lambda_ne", "lambda_e", "lambda_id", "lambda_i", "lambda_d", "lambda_iso",
-                     "edge_threshold", "rgb_boundary_threshold"):
-            _require(getattr(lo, name) >= 0, f"loss.{name}", "must be >= 0")
-        _require(0 <= t.short_exposure_ratio <= 1, "tracking.short_exposure_ratio",
-                 "must be in [0, 1]")
-        for name in ("lr_exposure", "max_translation_jump", "max_rotation_jump",
-                     "divergence_loss_factor"):
-            _require(getattr(t, name) > 0, f"tracking.{name}", "must be > 0")
-        _require(0 < t.convergence_tolerance < 1, "tracking.convergence_tolerance",
-                 "must be in (0, 1)")
-        _require(t.convergence_patience >= 1, "tracking.convergence_patience", "must be >= 1")
-        _require(k.interval >= 1, "keyframes.interval", "must be >= 1")
-        _require(b.mapping_iters_per_frame is None or b.mapping_iters_per_frame >= 1,
-                 "budget.mapping_iters_per_frame", "must be >= 1 (or null)")
-        for name in ("overlap", "cutoff"):
-            _require(0 <= getattr(k, name) <= 1, f"keyframes.{name}", "must be in [0, 1]")
-        _require(k.min_translation >= 0 and k.translation >= 0, "keyframes.translation",
-                 "thresholds must be >= 0")
-        _require(k.protected >= 1, "keyframes.protected", "must be >= 1")
-        for name in ("n_random_kfs", "refine_iters"):
-            _require(getattr(mp, name) >= 0, f"mapping.{name}", "must be >= 0")
-        for name in ("kf_pose_lr_scale", "lr_quats", "lr_crf", "point_size", "near_plane"):
-            _require(getattr(mp, name) > 0, f"mapping.{name}", "must be > 0")
-        for name in ("prune_opacity", "init_prune_opacity"):
-            _require(0 <= getattr(mp, name) < 1, f"mapping.{name}", "must be in [0, 1)")
-        _require(0 < b.resolution_scale <= 1, "budget.resolution_scale", "must be in (0, 1]")
-        _require(b.segments >= 1, "budget.segments", "must be >= 1")
-        for name in ("tracking_iters", "init_iters", "mapping_iters", "pose_window"):
-            _require(getattr(b, name) >= 0, f"budget.{name}", "must be >= 0")
-        _require(b.tracking_iters_no_prior is None or b.tracking_iters_no_prior >= 0,
-                 "budget.tracking_iters_no_prior", "must be >= 0 (or null: tracking_iters)")
-        _require(b.window_size >= 3, "budget.window_size", "must be >= 3")
+        for key, bounds in RANGES.items():
+            value = self.get(key)
+            if value is not None:
+                _require(bounds.contains(value), key, f"must be {bounds.describe()}"
+                         + _null_note(key, bounds))
+        m, k, b = self.method, self.keyframes, self.budget
         _require(b.window_size > k.protected, "budget.window_size",
                  "must exceed keyframes.protected")
-        _require(b.views_per_iter is None or b.views_per_iter >= 1, "budget.views_per_iter",
-                 "must be >= 1 (or null: every view)")
-        _require(b.edge_blocks is None or b.edge_blocks >= 1, "budget.edge_blocks",
-                 "must be >= 1 (or null)")
-        for name in ("pcd_downsample_init", "pcd_downsample", "prune_every"):
-            _require(getattr(b, name) >= 1, f"budget.{name}", "must be >= 1")
-        _require(b.prune_offset >= 0, "budget.prune_offset", "must be >= 0")
-        _require(0 < b.tracking_lr_final <= 1, "budget.tracking_lr_final", "must be in (0, 1]")
-        for name in ("lr_rot", "lr_trans", "lr_means", "lr_colors", "lr_opacity", "lr_scales"):
-            _require(getattr(b, name) > 0, f"budget.{name}", "must be > 0")
-        _require(b.converged_threshold >= 0, "budget.converged_threshold", "must be >= 0")
         if (m.event_tracking or m.event_mapping) and not m.blur_model:
             raise ConfigError("method.event_tracking/event_mapping need method.blur_model "
                               "(events live between sub-poses)")
         return self
+
+
+@dataclass(frozen=True)
+class Bounds:
+    """The range a number field must lie in (checked by :meth:`SlamConfig.validate`, shown in
+    the configuration reference); a bound of ``None`` is open-ended.
+
+    Attributes:
+        low, high: the bounds (``None``: unbounded on that side).
+        low_open, high_open: the bound itself is excluded (``> low``, ``< high``).
+        null: what ``None`` means for an optional field (``""``: not worth a word).
+    """
+
+    low: float | None = None
+    high: float | None = None
+    low_open: bool = False
+    high_open: bool = False
+    null: str = ""
+
+    def contains(self, value: float) -> bool:
+        """Whether ``value`` lies in the range."""
+        above = self.low is None or (value > self.low if self.low_open else value >= self.low)
+        below = self.high is None or (value < self.high if self.high_open else value <= self.high)
+        return above and below
+
+    def describe(self) -> str:
+        """``">= 0"``, ``"> 0"`` or ``"in (0, 1]"``."""
+        if self.high is None:
+            return f"{'>' if self.low_open else '>='} {self.low:g}"
+        if self.low is None:
+            return f"{'<' if self.high_open else '<='} {self.high:g}"
+        return (f"in {'(' if self.low_open else '['}{self.low:g}, {self.high:g}"
+                f"{')' if self.high_open else ']'}")
+
+
+_NON_NEGATIVE = Bounds(low=0)
+_POSITIVE = Bounds(low=0, low_open=True)
+_AT_LEAST_ONE = Bounds(low=1)
+_FRACTION = Bounds(low=0, high=1)
+
+
+def _each(group: str, names: str, bounds: Bounds) -> dict[str, Bounds]:
+    return {f"{group}.{name}": bounds for name in names.split()}
+
+
+#: the range of every number field, by ``group.field`` (a test checks that none is missing)
+RANGES: dict[str, Bounds] = {
+    "method.crf_nodes": Bounds(low=2),
+    "method.crf_alpha": _NON_NEGATIVE,
+    "method.theta": Bounds(low=0, low_open=True, null="the sequence's thresholds"),
+    **_each("loss", "lambda_ne lambda_e lambda_id lambda_i lambda_d lambda_iso edge_threshold "
+            "rgb_boundary_threshold", _NON_NEGATIVE),
+    "tracking.short_exposure_ratio": _FRACTION,
+    **_each("tracking", "lr_exposure max_translation_jump max_rotation_jump "
+            "divergence_loss_factor", _POSITIVE),
+    "tracking.convergence_tolerance": Bounds(low=0, high=1, low_open=True, high_open=True),
+    "tracking.convergence_patience": _AT_LEAST_ONE,
+    "keyframes.interval": _AT_LEAST_ONE,
+    **_each("keyframes", "overlap cutoff", _FRACTION),
+    **_each("keyframes", "min_translation translation", _NON_NEGATIVE),
+    "keyframes.protected": _AT_LEAST_ONE,
+    **_each("mapping", "n_random_kfs refine_iters", _NON_NEGATIVE),
+    **_each("mapping", "kf_pose_lr_scale lr_quats lr_crf point_size near_plane", _POSITIVE),
+    **_each("mapping", "prune_opacity init_prune_opacity", Bounds(low=0, high=1, high_open=True)),
+    "budget.resolution_scale": Bounds(low=0, high=1, low_open=True),
+    "budget.segments": _AT_LEAST_ONE,
+    **_each("budget", "tracking_iters init_iters mapping_iters pose_window", _NON_NEGATIVE),
+    "budget.tracking_iters_no_prior": Bounds(low=0, null="tracking_iters"),
+    "budget.mapping_iters_per_frame": Bounds(low=1, null="mapping_iters / keyframes.interval"),
+    "budget.views_per_iter": Bounds(low=1, null="every view"),
+    "budget.window_size": Bounds(low=3),
+    "budget.edge_blocks": Bounds(low=1, null="one global threshold"),
+    **_each("budget", "pcd_downsample_init pcd_downsample prune_every", _AT_LEAST_ONE),
+    "budget.prune_offset": _NON_NEGATIVE,
+    "budget.tracking_lr_final": Bounds(low=0, high=1, low_open=True),
+    **_each("budget", "lr_rot lr_trans lr_means lr_colors lr_opacity lr_scales", _POSITIVE),
+    "budget.converged_threshold": _NON_NEGATIVE,
+}
+
+
+def _null_note(key: str, bounds: Bounds) -> str:
+    """`` (or null: meaning)`` for a field that may be None, else ``""``."""
+    group, name = key.split(".")
+    if type(None) not in typing.get_args(typing.get_type_hints(GROUPS[group])[name]):
+        return ""
+    return f" (or null: {bounds.null})" if bounds.null else " (or null)"
 
 
 def _require(ok: bool, key: str, problem: str) -> None:
