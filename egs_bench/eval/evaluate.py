@@ -241,8 +241,8 @@ def evaluate_renders(run: RunFolder, protocol: Protocol, seq: Sequence,
         lpips_problem = None
     except LpipsWeightsError:
         model = None
-        lpips_problem = f"no pretrained LPIPS-{protocol.lpips_net} weights found (README: LPIPS " \
-                        "weights)"
+        lpips_problem = f"no pretrained LPIPS-{protocol.lpips_net} weights found (docs/guide/" \
+                        "evaluation.md, LPIPS weights)"
     except InputError as exc:  # metrics.json holds no machine-specific paths: file name only
         model, lpips_problem = None, f"LPIPS weights unreadable ({exc.path.name}: {exc.problem})"
     per_frame: dict[str, list] = {"frame": [], "psnr_db": [], "ssim": [], "lpips": []}

@@ -1,10 +1,12 @@
 """``docs/guide/extending.md`` is a test: its code blocks run in order, and what they print
 and build is checked here (a keyframe rule, a loss term with an analytic value, a tracker, a
-method made of them, and a run)."""
+method made of them, a run, a dataset written with ``SequenceWriter`` and a method of its own
+scored on it)."""
 
 from __future__ import annotations
 
 import re
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -20,31 +22,41 @@ def guide_code() -> list[str]:
     return re.findall(r"```python\n(.*?)```", GUIDE.read_text(encoding="utf-8"), flags=re.S)
 
 
-@pytest.fixture
-def guide_namespace(tmp_path: Path, monkeypatch) -> dict:
+@pytest.fixture(scope="module")
+def guide_folder(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """Where the guide's code runs (its working directory)."""
+    return tmp_path_factory.mktemp("guide")
+
+
+@pytest.fixture(scope="module")
+def guide_namespace(guide_folder: Path) -> Iterator[dict]:
+    """The guide's code blocks run once, in order, in ``guide_folder``; the methods they
+    register are removed afterwards."""
     from egs_bench.runs import registry
 
-    monkeypatch.chdir(tmp_path)
     namespace: dict = {"__name__": "guide"}
-    try:
-        for block in guide_code():
-            exec(compile(block, str(GUIDE), "exec"), namespace)  # the guide's code
-        yield namespace
-    finally:
-        registry._USER.pop("egs-depth-tv", None)
+    with pytest.MonkeyPatch.context() as patch:
+        patch.chdir(guide_folder)
+        try:
+            for block in guide_code():
+                exec(compile(block, str(GUIDE), "exec"), namespace)  # the guide's code
+            yield namespace
+        finally:
+            registry._USER.pop("egs-depth-tv", None)
+            registry._USER.pop("short-steps", None)
 
 
 def test_the_guide_has_its_examples() -> None:
-    assert len(guide_code()) == 5
+    assert len(guide_code()) == 7
 
 
 def test_the_guides_run_uses_its_keyframe_rule_tracker_and_loss_weight(guide_namespace,
-                                                                       tmp_path: Path) -> None:
+                                                                       guide_folder: Path) -> None:
     run = guide_namespace["run"]
     assert run.read_status().state == "done"
     assert list(run.read_keyframes()) == [0, 2, 4]
     assert sorted(guide_namespace["iterations_by_frame"]) == [1, 2, 3, 4, 5]
-    cfg = yaml.safe_load((tmp_path / "runs" / "egs-depth-tv" / "config.yaml").read_text())
+    cfg = yaml.safe_load((guide_folder / "runs" / "egs-depth-tv" / "config.yaml").read_text())
     assert cfg["slam"]["extra"] == {"lambda_depth_tv": 0.1}
     from egs_bench.runs.registry import get_method
 
@@ -75,3 +87,40 @@ def test_the_guides_loss_term_on_a_depth_ramp(guide_namespace) -> None:
                           torch.ones(3, dtype=torch.float64))
     stacked = {k: torch.cat([v, v]) for k, v in prepared.items()}
     np.testing.assert_allclose(term.value(views, stacked).numpy(), [0.05, 0.05], rtol=1e-12)
+
+
+def test_the_guides_dataset_is_a_valid_sequence_with_what_it_wrote(guide_namespace,
+                                                                  guide_folder: Path) -> None:
+    from egs_bench.datasets.sequence import Sequence
+
+    seq = Sequence.open(guide_folder / "my_wall")
+    assert len(seq) == 4 and seq.has_events and not seq.has_sharp
+    assert (seq.width, seq.height) == (64, 48)
+    np.testing.assert_array_equal(seq.rgb(2), guide_namespace["wall"][:, 2:66])
+    np.testing.assert_allclose(seq.depth(1), 2.0)
+    np.testing.assert_allclose(seq.poses[:, :2, 3], [[0.0, 0.0], [0.01, 0.002], [0.02, 0.008],
+                                                     [0.03, 0.018]], atol=1e-9)
+    start, end = seq.exposure(3)
+    events = seq.events.window(start, end)
+    assert len(events) == 8 and set(events.x.tolist()) == {13}
+    assert sorted(set(events.p.tolist())) == [-1, 1]
+    assert not list(guide_folder.glob(".my_wall*"))  # the staging folder is gone
+
+
+def test_the_guides_short_steps_leave_a_tenth_of_the_spread_after_alignment(
+        guide_namespace, guide_folder: Path) -> None:
+    """Positions scaled by 0.9 about frame 0: the SE(3) alignment that best maps them onto the
+    ground truth is a pure translation, and 10 % of each position's offset from the mean
+    remains."""
+    from egs_bench.datasets.sequence import Sequence
+    from egs_bench.runs.registry import get_method
+
+    run = guide_namespace["short_run"]
+    assert run.read_status().state == "done"
+    metrics = guide_namespace["metrics"]
+    assert metrics["rendering"] is None
+    positions = Sequence.open(guide_folder / "my_wall").poses[:, :3, 3]
+    spread = positions - positions.mean(0)
+    expected = 0.1 * np.sqrt((spread ** 2).sum(1).mean())
+    np.testing.assert_allclose(metrics["ate"]["rmse_m"], expected, rtol=1e-6)
+    assert isinstance(get_method("short-steps"), guide_namespace["ShortSteps"])
