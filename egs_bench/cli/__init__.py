@@ -39,6 +39,7 @@ _COMMAND_MODULES = (
     "interop_cmds",
     "recording_cmds",
     "experiment_cmds",
+    "report_cmds",
 )
 
 
