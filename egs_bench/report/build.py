@@ -201,3 +201,25 @@ def build_report(source: str | Path, out: str | Path, *, overwrite: bool = False
     return ReportResult(out, out / "index.html", len(data.runs), len(data.sequences),
                         sum(r.flagged for r in data.runs), store.written, store.reused,
                         _folder_size(out))
+
+
+def write_side_report(source: Path, out: Path, say: Callable[[str], None], *,
+                      protocols: list[str] | None = None,
+                      evaluate_missing: bool = False) -> ReportResult | None:
+    """The report a demo or a sweep writes next to its runs: replaces an earlier report at
+    ``out``, and never fails its caller: a problem (an existing folder that is not a report, a
+    bad run) is one warning line through ``say`` and ``None``; the runs are untouched.
+    Interruptions (Ctrl-C, SIGTERM) still propagate."""
+    from egs_bench.errors import reraise_interruption
+
+    try:
+        result = build_report(source, out, overwrite=is_report_folder(out), protocols=protocols,
+                              evaluate_missing=evaluate_missing)
+    except Exception as exc:  # noqa: BLE001 (the runs are the result; the report is a view)
+        reraise_interruption(exc)
+        say(f"warning: report not written ({type(exc).__name__}: {exc}); the runs are "
+            f"unaffected, retry with `egs-bench report {source} -o {out} --overwrite`")
+        return None
+    say(f"report: {result.index} ({result.runs} runs, {result.flagged} flagged, "
+        f"{result.size_bytes / 1e6:.1f} MB)")
+    return result
