@@ -272,3 +272,25 @@ def test_cli_on_a_run_folder_and_a_runs_root(runs_root: Path, tmp_path: Path,
     assert err.startswith("error:") and "--overwrite" in err and "\n" not in err
     assert main(["report", str(tmp_path / "nothing"), "-o", str(tmp_path / "x")]) == 3
     assert main(["report", str(runs_root), "-o", str(tmp_path / "y"), "--frames", "a"]) == 2
+
+
+def test_a_settings_axis_is_its_own_column_and_filter(tmp_path: Path) -> None:
+    """Two settings of one method (as a sweep's ``settings`` makes them), two seeds each."""
+    seq = Sequence.open(make_sequence(tmp_path / "data", "sc", 6, 0))
+    for value in (0.05, 0.1):
+        for seed in (0, 1):
+            run = GOOD.run(seq, tmp_path / "runs" / f"d{value}" / f"seed{seed}", seed=seed)
+            config = yaml.safe_load((run.path / "config.yaml").read_text())
+            config["slam"] = {"loss": {"lambda_d": value}}
+            (run.path / "config.yaml").write_text(yaml.safe_dump(config))
+    result = build_report(tmp_path / "runs", tmp_path / "rep")
+    page = _Page(result.index)
+    board = page.tables["leaderboard-egs"]
+    assert board[0][:2] == ["Method", "loss.lambda_d"]
+    assert sorted(row[1] for row in board[1:]) == ["0.05", "0.1"]
+    runs = page.tables["runs"]
+    column = runs[0].index("loss.lambda_d")
+    assert sorted(row[column] for row in runs[1:]) == ["0.05", "0.05", "0.1", "0.1"]
+    html = result.index.read_text()
+    assert re.search(r'<select data-axis="settings">.*lambda_d=0\.05.*lambda_d=0\.1', html)
+    assert 'data-settings="loss.lambda_d=0.1"' in html
