@@ -80,11 +80,12 @@ def load_ms(driver: Any, page: Path) -> float:
 
 
 def make_runs(work: Path, methods: int, sequences: int, seeds: int, frames: int) -> Path:
-    """``methods x sequences x seeds`` imported runs under ``work/runs`` on small synthetic
-    sequences (generated into ``work/data``)."""
+    """``methods x sequences x seeds`` imported, evaluated runs under ``work/runs`` on small
+    synthetic sequences (generated into ``work/data``)."""
     from egs_bench.baselines.import_runs import import_tum_run
     from egs_bench.datasets.sequence import Sequence
     from egs_bench.datasets.synthetic import make_synthetic
+    from egs_bench.eval.evaluate import evaluate_run
     from egs_bench.geometry import write_tum
     from egs_bench.images import write_ldr_image
 
@@ -101,17 +102,22 @@ def make_runs(work: Path, methods: int, sequences: int, seeds: int, frames: int)
                 rng = np.random.default_rng(1000 * m + seed)
                 est = np.asarray(seq.poses).copy()
                 est[:, :3, 3] += rng.normal(0.0, 0.005 * (m + 1), (len(seq), 3))
-                src = work / "src" / f"m{m}-s{s}-{seed}"
-                (src / "renders").mkdir(parents=True, exist_ok=True)
+                # one source path per method: the import records it in config.yaml, and runs
+                # of one method with different settings would be different leaderboard rows
+                src = work / "src" / f"m{m}-s{s}"
+                shutil.rmtree(src / "renders", ignore_errors=True)
+                (src / "renders").mkdir(parents=True)
                 write_tum(src / "traj.txt", np.asarray(seq.timestamps_s), est)
                 for i in range(len(seq)):
                     noisy = seq.sharp(i).astype(float) + rng.normal(0, 3.0 * (m + 1),
                                                                     seq.sharp(i).shape)
                     write_ldr_image(src / "renders" / f"{i}.png",
                                     np.clip(noisy, 0, 255).astype(np.uint8))
-                import_tum_run(src / "traj.txt", runs / f"seq{s}" / f"method{m}" / f"seed{seed}",
-                               method=f"method{m}", sequence_name=f"seq{s}",
-                               sequence_path=path, renders_dir=src / "renders")
+                run = import_tum_run(src / "traj.txt",
+                                     runs / f"seq{s}" / f"method{m}" / f"seed{seed}",
+                                     method=f"method{m}", sequence_name=f"seq{s}",
+                                     sequence_path=path, renders_dir=src / "renders")
+                evaluate_run(run.path)  # before the report: its build time is its own
     shutil.rmtree(work / "src", ignore_errors=True)
     return runs
 
@@ -175,7 +181,7 @@ def main() -> None:
     result = build_report(runs, report, overwrite=report.exists())
     build_s = time.perf_counter() - t
     numbers = {"runs": result.runs, "sequences": result.sequences, "frames": args.frames,
-               "make_runs_s": round(made_s, 1), "build_report_s": round(build_s, 1),
+               "make_and_evaluate_runs_s": round(made_s, 1), "build_report_s": round(build_s, 1),
                "report_mb": round(folder_mb(report), 2),
                "assets_written": result.assets_written, "assets_reused": result.assets_reused,
                **{k: round(v, 1) for k, v in measure(report, args.loads).items()}}

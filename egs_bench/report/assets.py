@@ -24,6 +24,8 @@ from egs_bench.images import write_ldr_image
 ASSETS_DIR = "assets"
 #: Widest stored frame thumbnail, pixels.
 THUMB_WIDTH = 320
+#: Widest stored image strip, pixels (a page shows it at most 1200 px wide).
+STRIP_WIDTH = 2000
 #: The page style and script, copied from the package next to the images.
 STATIC_FILES = ("report.css", "report.js")
 _HASH_CHARS = 16
@@ -76,11 +78,18 @@ class AssetStore:
             self.written += 1
         return self._rel(path)
 
-    def figure(self, draw: Callable[[Path], Path]) -> str:
-        """Store the PNG ``draw(path)`` writes at ``path``; returns the stored file's path."""
+    def figure(self, draw: Callable[[Path], Path], max_width: int | None = None) -> str:
+        """Store the PNG ``draw(path)`` writes at ``path``, downscaled to ``max_width`` pixels
+        when wider; returns the stored file's path."""
+        from egs_bench.images import read_ldr_image
+
         self._tmp += 1
         tmp = self.dir / f".figure-{self._tmp}.png"
         draw(tmp)
+        if max_width is not None:
+            pixels = read_ldr_image(tmp)
+            if pixels.shape[1] > max_width:
+                write_ldr_image(tmp, downscale(pixels, max_width))
         digest = hashlib.sha256(tmp.read_bytes()).hexdigest()
         path = self._name(digest)
         if path.exists():

@@ -16,12 +16,14 @@ import numpy as np
 
 from egs_bench.eval.leaderboard import Leaderboard
 from egs_bench.eval.results import EVALUATED
-from egs_bench.report.assets import AssetStore
+from egs_bench.report.assets import STRIP_WIDTH, AssetStore
 from egs_bench.report.collect import ReportData, RunRecord
 from egs_bench.report.sources import RunSources
 
 #: Frames of the image strip when none are chosen.
 STRIP_FRAMES = 3
+#: Methods (leaderboard rows) in the image strip; a wider sweep shows its first rows.
+STRIP_METHODS = 6
 
 
 @dataclass(frozen=True)
@@ -122,8 +124,12 @@ def build_sequence_page(name: str, page_name: str, data: ReportData, sources: Ru
                                     store.figure(lambda p: plot_curves(
                                         psnr, p, xlabel="frame", ylabel="PSNR [dB]",
                                         markers=True))))
-    if seq is not None and reps:
-        rendered = [set(RunFolder.open(r.result.path).render_indices()) for _, r in reps]
+    strip_reps = reps[:STRIP_METHODS]
+    if len(reps) > len(strip_reps):
+        page.notes.append(f"the image strip shows the first {len(strip_reps)} of the "
+                          f"{len(reps)} leaderboard rows")
+    if seq is not None and strip_reps:
+        rendered = [set(RunFolder.open(r.result.path).render_indices()) for _, r in strip_reps]
         common = sorted(set.intersection(*rendered) & set(range(len(seq))))
         page.frames, missing = pick_frames(common, frames)
         if missing:
@@ -134,7 +140,7 @@ def build_sequence_page(name: str, page_name: str, data: ReportData, sources: Ru
         if page.frames and ref_of(page.frames[0]) is not None:
             rows = [[Panel("observed", seq.rgb(f))]
                     + [Panel(label, RunFolder.open(r.result.path).read_render(f))
-                       for label, r in reps]
+                       for label, r in strip_reps]
                     + [Panel("sharp GT" if sharp else "reference", ref_of(f))]
                     for f in page.frames]
             crops = detail_crops(rows[0][-1].image, n=2)
@@ -142,7 +148,8 @@ def build_sequence_page(name: str, page_name: str, data: ReportData, sources: Ru
                 "Observed frame, each method's render and the reference, with zoomed crops "
                 "and PSNR against the reference",
                 store.figure(lambda p: plot_comparison_grid(
-                    rows, p, crops=crops, row_labels=[f"frame {f}" for f in page.frames])))
+                    rows, p, crops=crops, row_labels=[f"frame {f}" for f in page.frames]),
+                    max_width=STRIP_WIDTH))
     for r in page.runs:
         for where in (str(r.result.path), str(sources.sequence_path(r))):
             page.notes += [n for n in sources.notes.get(where, []) if n not in page.notes]

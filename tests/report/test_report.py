@@ -294,3 +294,26 @@ def test_a_settings_axis_is_its_own_column_and_filter(tmp_path: Path) -> None:
     html = result.index.read_text()
     assert re.search(r'<select data-axis="settings">.*lambda_d=0\.05.*lambda_d=0\.1', html)
     assert 'data-settings="loss.lambda_d=0.1"' in html
+
+
+def test_demo_writes_its_report_and_a_foreign_folder_only_warns(tmp_path: Path) -> None:
+    from egs_bench.demo import run_demo
+
+    seq = make_sequence(tmp_path / "data", "sd", 6, 0)
+    said: list[str] = []
+    result = run_demo(tmp_path / "demo", sequence=str(seq), methods=("sweep_fixtures:GOOD",),
+                      say=said.append, progress=False)
+    assert result.report is not None and result.report.runs == 1
+    assert is_report_folder(tmp_path / "demo" / "report")
+    again = run_demo(tmp_path / "demo", sequence=str(seq), methods=("sweep_fixtures:GOOD",),
+                     say=said.append, progress=False)
+    assert again.report is not None  # its own earlier report is replaced
+    foreign = tmp_path / "demo2" / "report"
+    foreign.mkdir(parents=True)
+    (foreign / "notes.txt").write_text("keep me")
+    said.clear()
+    third = run_demo(tmp_path / "demo2", sequence=str(seq), methods=("sweep_fixtures:GOOD",),
+                     say=said.append, progress=False)
+    assert third.report is None and third.runs  # the runs are there, the report is not
+    assert [s for s in said if s.startswith("warning: report not written")]
+    assert (foreign / "notes.txt").read_text() == "keep me"
