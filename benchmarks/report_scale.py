@@ -104,7 +104,7 @@ def make_runs(work: Path, methods: int, sequences: int, seeds: int, frames: int)
                 est[:, :3, 3] += rng.normal(0.0, 0.005 * (m + 1), (len(seq), 3))
                 # one source path per method: the import records it in config.yaml, and runs
                 # of one method with different settings would be different leaderboard rows
-                src = work / "src" / f"m{m}-s{s}"
+                src = work / "src" / f"m{m}"
                 shutil.rmtree(src / "renders", ignore_errors=True)
                 (src / "renders").mkdir(parents=True)
                 write_tum(src / "traj.txt", np.asarray(seq.timestamps_s), est)

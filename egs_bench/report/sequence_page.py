@@ -24,6 +24,8 @@ from egs_bench.report.sources import RunSources
 STRIP_FRAMES = 3
 #: Methods (leaderboard rows) in the image strip; a wider sweep shows its first rows.
 STRIP_METHODS = 6
+#: Longest column title of the image strip (longer row labels are cut, with an ellipsis).
+STRIP_TITLE_CHARS = 36
 
 
 @dataclass(frozen=True)
@@ -71,6 +73,11 @@ def pick_frames(available: Sequence[int], wanted: Sequence[int] | None,
         return [], []
     picks = np.linspace(0, len(avail) - 1, min(count, len(avail))).round().astype(int)
     return [avail[i] for i in sorted(set(picks.tolist()))], []
+
+
+def short_title(label: str, limit: int = STRIP_TITLE_CHARS) -> str:
+    """``label`` cut to ``limit`` characters with an ellipsis (titles share a narrow column)."""
+    return label if len(label) <= limit else label[:limit - 1] + "…"
 
 
 def _facts(summary: dict[str, Any]) -> list[tuple[str, str]]:
@@ -139,7 +146,7 @@ def build_sequence_page(name: str, page_name: str, data: ReportData, sources: Ru
         ref_of = seq.sharp if sharp else seq.rgb
         if page.frames and ref_of(page.frames[0]) is not None:
             rows = [[Panel("observed", seq.rgb(f))]
-                    + [Panel(label, RunFolder.open(r.result.path).read_render(f))
+                    + [Panel(short_title(label), RunFolder.open(r.result.path).read_render(f))
                        for label, r in strip_reps]
                     + [Panel("sharp GT" if sharp else "reference", ref_of(f))]
                     for f in page.frames]
