@@ -140,15 +140,16 @@ def measure(report: Path, loads: int) -> dict[str, float]:
 
 
 def screenshots(report: Path, out: Path) -> list[Path]:
-    """Full-width screenshots of the overview and the first sequence page as
-    ``report_overview.png`` and ``report_sequence.png``."""
-    pages = [(report / "index.html", out / "report_overview.png"),
-             (sorted((report / "sequences").glob("*.html"))[0], out / "report_sequence.png")]
-    with open_chromium(1280, 1500) as driver:
-        for page, png in pages:
+    """Screenshots, 1280 px wide, of the overview and the first sequence page (tall enough
+    for its figures and image strip) as ``report_overview.png`` and ``report_sequence.png``."""
+    pages = [(report / "index.html", out / "report_overview.png", 1400),
+             (sorted((report / "sequences").glob("*.html"))[0], out / "report_sequence.png",
+              2300)]
+    for page, png, height in pages:
+        with open_chromium(1280, height) as driver:
             driver.get(page.resolve().as_uri())
             driver.save_screenshot(str(png))
-    return [p for _, p in pages]
+    return [p for _, p, _ in pages]
 
 
 def main() -> None:
