@@ -9,7 +9,7 @@ export EGS_BENCH_CACHE := $(CURDIR)/.cache/egs_bench
 export MPLBACKEND := Agg
 export OMP_WAIT_POLICY := PASSIVE
 
-.PHONY: setup demo test test-fast lint docs bench regress regress-baseline gpu-check gpu-accuracy clean
+.PHONY: setup setup-browser demo test test-fast lint docs bench regress regress-baseline gpu-check gpu-accuracy clean
 
 setup: $(STAMP)
 
@@ -24,6 +24,21 @@ $(STAMP): pyproject.toml constraints.txt
 	# Compiles the numba kernels into NUMBA_CACHE_DIR now, so the first `make demo` compiles nothing.
 	$(BIN)/egs-bench warm-up
 	touch $(STAMP)
+
+# Debian's chromium + chromium-driver for the HTML report's browser test (tests/report), when
+# root or password-less sudo can install them; otherwise that test is skipped with the reason.
+setup-browser:
+	@if command -v chromium >/dev/null && command -v chromedriver >/dev/null; then \
+	  echo "chromium and chromedriver present"; \
+	elif [ "$$(id -u)" = 0 ]; then \
+	  (apt-get update -qq && apt-get install -y -qq chromium chromium-driver) \
+	    || echo "could not install chromium: the browser test will be skipped"; \
+	elif command -v sudo >/dev/null && sudo -n true 2>/dev/null; then \
+	  (sudo apt-get update -qq && sudo apt-get install -y -qq chromium chromium-driver) \
+	    || echo "could not install chromium: the browser test will be skipped"; \
+	else \
+	  echo "chromium not installed (needs root or sudo): the browser test will be skipped"; \
+	fi
 
 demo: setup
 	$(BIN)/egs-bench demo --out demo_out

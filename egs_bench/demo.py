@@ -1,5 +1,6 @@
 """The end-to-end demo behind ``make demo``: data -> EGS-SLAM and the MonoGS-style baseline ->
-evaluation -> leaderboard, plots and a side-by-side figure, on a built-in blurred sequence.
+evaluation -> leaderboard, plots, a side-by-side figure and the HTML report (``<out>/report/``),
+on a built-in blurred sequence.
 
 The default shows what the method is for: ``demo-blur`` (24 frames of ``demo-fast``'s strong
 blur) processed at its own 224x128 with the cpu budget (at half resolution the blur shrinks by
@@ -14,12 +15,18 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from egs_bench.report import ReportResult
 
 DEMO_SEQUENCE = "demo-blur"
 DEMO_METHODS = ("egs", "monogs")
 DEMO_PRESET = "cpu"
 # Budget override of the demo: the sequence's own 224x128 instead of the cpu budget's half.
 DEMO_OPTIONS = {"budget.resolution_scale": 1.0}
+#: The demo's HTML report, under its output folder.
+REPORT_DIR = "report"
 
 
 @dataclass
@@ -32,6 +39,7 @@ class DemoResult:
     comparison: Path | None = None
     plots: dict[str, list[Path]] = field(default_factory=dict)
     leaderboard_md: str = ""
+    report: ReportResult | None = None
 
 
 def run_demo(out: str | Path, *, sequence: str = DEMO_SEQUENCE,
@@ -120,6 +128,9 @@ def run_demo(out: str | Path, *, sequence: str = DEMO_SEQUENCE,
         result.comparison = qualitative_figure(list(result.runs.values()), path, frames, crops)
         say(f"comparison (observed | renders | sharp GT, zoomed crops, PSNR vs sharp GT): "
             f"{result.comparison}")
+    from egs_bench.report import write_side_report
+
+    result.report = write_side_report(out / "runs", out / REPORT_DIR, say)
     say(f"frame panel: {panel}")
     for name, paths in result.plots.items():
         say(f"plots ({name}): " + ", ".join(str(p) for p in paths))

@@ -40,6 +40,7 @@ _COMMAND_MODULES = (
     "recording_cmds",
     "experiment_cmds",
     "setup_cmds",
+    "report_cmds",
 )
 
 

@@ -6,7 +6,8 @@ shard, decide per run without starting a process when nothing is to be done (fin
 same configuration, stale, conflict), start the rest on the chosen backend
 (:mod:`~egs_bench.experiments.backends`), then write the sweep summary: every run's state, wall
 time and failure reason, plus ATE and PSNR where evaluated, to ``<out>/sweep_summary.csv`` and
-``<out>/sweep_summary.md``. Starting the same command again after a kill resumes the sweep.
+``<out>/sweep_summary.md``, and the HTML report of its runs to ``<out>/report/``
+(:mod:`egs_bench.report`). Starting the same command again after a kill resumes the sweep.
 """
 
 from __future__ import annotations
@@ -41,6 +42,7 @@ BACKENDS = ("local", "slurm")
 SUMMARY_CSV = "sweep_summary.csv"
 SUMMARY_MD = "sweep_summary.md"
 DONE_STATES = ("done",)
+REPORT_DIR = "report"
 
 
 @dataclass
@@ -217,7 +219,7 @@ def run_sweep(spec: SweepSpec, *, out: Path | None = None,
               shard: tuple[int, int] | None = None, force: bool = False,
               retry_failed: bool = False, jobs: int | None = None,
               threads_per_job: int | None = None, cluster: str = "slurm", wait: bool = True,
-              dry_run: bool = False, status_only: bool = False,
+              dry_run: bool = False, status_only: bool = False, html_report: bool = True,
               say: Callable[[str], None] = print) -> SweepReport:
     """Run (or resume) a sweep and write its summary.
 
@@ -236,6 +238,9 @@ def run_sweep(spec: SweepSpec, *, out: Path | None = None,
         wait: wait for SLURM jobs (otherwise return after submitting).
         dry_run: list what would run, start nothing.
         status_only: only summarise the run folders as they are.
+        html_report: write ``<out>/report/`` after the runs (not for a dry run, ``status_only``
+            or SLURM without ``wait``); a report that cannot be written is a warning, never a
+            failed sweep.
 
     Raises:
         ConfigError: an unknown backend, or a pool that cannot run these runs.
@@ -273,4 +278,8 @@ def run_sweep(spec: SweepSpec, *, out: Path | None = None,
     df = summary_table(selected, outcomes, invoked=not status_only)
     # a dry run writes nothing, not even the summary (an earlier real summary stays)
     md = summary_markdown(df) if dry_run else write_summary(out, df)
+    if html_report and not (dry_run or status_only) and (wait or backend == "local"):
+        from egs_bench.report import write_side_report
+
+        write_side_report(out, out / REPORT_DIR, say, protocols=[spec.protocol])
     return SweepReport(out, runs, [r.run_id for r in selected], df, md, outcomes, ungenerated)

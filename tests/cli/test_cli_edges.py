@@ -63,6 +63,7 @@ def _bad_path_cases(tmp: Path, make: bool = True) -> dict[str, tuple[list[str | 
                            "--exposure-us", "10000", "--frame-stamp", "end"], missing),
         "make-calib": (["make-calib", "-o", out, "--kalibr", missing], missing),
         "sweep": (["sweep", missing], missing),
+        "report": (["report", missing, "-o", out], missing),
         "regress": (["regress", missing, missing], missing),
         "paper-tables": (["paper-tables", missing], missing),
         "figure": (["figure", "trajectories", missing, "-o", out.with_suffix(".pdf")], missing),

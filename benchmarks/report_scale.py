@@ -1,0 +1,193 @@
+"""Size and load time of a 100-run HTML report (issue 37's scale target: < 50 MB, < 2 s).
+
+Builds a runs root of ``--methods`` x ``--sequences`` x ``--seeds`` imported runs
+(:func:`egs_bench.baselines.import_runs.import_tum_run`, what ``egs-bench import-run`` does):
+each estimate is the ground truth plus seeded position noise, each render the sharp frame plus
+seeded noise, so the runs are evaluated like real ones (ATE, PSNR, SSIM, LPIPS when its weights
+are available). Then writes the report, measures its size on disk and opens its pages in
+headless Chromium: the load time is navigation start to the end of the load event
+(Navigation Timing), the median of ``--loads`` fresh loads of each page.
+
+    python benchmarks/report_scale.py --work /tmp/report_scale           # 5 x 2 x 10 = 100 runs
+    python benchmarks/report_scale.py --screenshots REPORT_DIR docs/images  # the docs' images
+
+Also the module the browser test drives Chromium with (:func:`open_chromium`): Debian's
+``chromium`` through Debian's ``chromium-driver`` and selenium (see tests/report).
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import json
+import shutil
+import statistics
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+CHROMIUM = Path("/usr/bin/chromium")
+CHROMEDRIVER = Path("/usr/bin/chromedriver")
+
+
+def chromium_missing() -> str | None:
+    """Why headless Chromium cannot be driven here, or ``None`` when it can."""
+    try:
+        import selenium  # noqa: F401
+    except ImportError:
+        return "selenium is not installed (pip install -e '.[dev]')"
+    for path, package in ((CHROMIUM, "chromium"), (CHROMEDRIVER, "chromium-driver")):
+        if not path.is_file():
+            return f"{path} not found (apt-get install -y {package}; `make setup-browser`)"
+    return None
+
+
+@contextlib.contextmanager
+def open_chromium(width: int = 1400, height: int = 1000) -> Iterator[Any]:
+    """A headless Chromium (selenium WebDriver) that records the page's console messages
+    (``driver.get_log("browser")``)."""
+    from selenium import webdriver
+    from selenium.webdriver.chrome.service import Service
+
+    options = webdriver.ChromeOptions()
+    options.binary_location = str(CHROMIUM)
+    for arg in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
+                f"--window-size={width},{height}", "--allow-file-access-from-files"):
+        options.add_argument(arg)
+    options.set_capability("goog:loggingPrefs", {"browser": "ALL"})
+    driver = webdriver.Chrome(service=Service(str(CHROMEDRIVER)), options=options)
+    try:
+        yield driver
+    finally:
+        driver.quit()
+
+
+def load_ms(driver: Any, page: Path) -> float:
+    """Navigation start to the end of the load event of one fresh load of ``page``, ms."""
+    driver.get("about:blank")
+    driver.get(page.resolve().as_uri())
+    for _ in range(200):  # get() returns after the load event; its end may lag a tick
+        end = driver.execute_script(
+            "const n = performance.getEntriesByType('navigation')[0];"
+            "return n ? n.loadEventEnd - n.startTime : 0;")
+        if end > 0:
+            return float(end)
+        time.sleep(0.01)
+    raise RuntimeError(f"{page}: no load event")
+
+
+def make_runs(work: Path, methods: int, sequences: int, seeds: int, frames: int) -> Path:
+    """``methods x sequences x seeds`` imported, evaluated runs under ``work/runs`` on small
+    synthetic sequences (generated into ``work/data``)."""
+    from egs_bench.baselines.import_runs import import_tum_run
+    from egs_bench.datasets.sequence import Sequence
+    from egs_bench.datasets.synthetic import make_synthetic
+    from egs_bench.eval.evaluate import evaluate_run
+    from egs_bench.geometry import write_tum
+    from egs_bench.images import write_ldr_image
+
+    runs = work / "runs"
+    scenes = ["office", "livingroom", "studio", "corridor"]
+    for s in range(sequences):
+        path = work / "data" / f"seq{s}"
+        if not (path / "meta.yaml").is_file():
+            make_synthetic(scenes[s % len(scenes)], path, frames=frames, width=224, height=128,
+                           speed=0.4, seed=20 + s, exposure_ms=25.0, progress=False)
+        seq = Sequence.open(path)
+        for m in range(methods):
+            for seed in range(seeds):
+                rng = np.random.default_rng(1000 * m + seed)
+                est = np.asarray(seq.poses).copy()
+                est[:, :3, 3] += rng.normal(0.0, 0.005 * (m + 1), (len(seq), 3))
+                # one source path per method: the import records it in config.yaml, and runs
+                # of one method with different settings would be different leaderboard rows
+                src = work / "src" / f"m{m}"
+                shutil.rmtree(src / "renders", ignore_errors=True)
+                (src / "renders").mkdir(parents=True)
+                write_tum(src / "traj.txt", np.asarray(seq.timestamps_s), est)
+                for i in range(len(seq)):
+                    noisy = seq.sharp(i).astype(float) + rng.normal(0, 3.0 * (m + 1),
+                                                                    seq.sharp(i).shape)
+                    write_ldr_image(src / "renders" / f"{i}.png",
+                                    np.clip(noisy, 0, 255).astype(np.uint8))
+                run = import_tum_run(src / "traj.txt",
+                                     runs / f"seq{s}" / f"method{m}" / f"seed{seed}",
+                                     method=f"method{m}", sequence_name=f"seq{s}",
+                                     sequence_path=path, renders_dir=src / "renders")
+                evaluate_run(run.path)  # before the report: its build time is its own
+    shutil.rmtree(work / "src", ignore_errors=True)
+    return runs
+
+
+def folder_mb(path: Path) -> float:
+    return sum(p.stat().st_size for p in path.rglob("*") if p.is_file()) / 1e6
+
+
+def measure(report: Path, loads: int) -> dict[str, float]:
+    """Median load time [ms] of the overview, the first sequence page and the first run page."""
+    pages = {"index": report / "index.html",
+             "sequence": sorted((report / "sequences").glob("*.html"))[0],
+             "run": sorted((report / "runs").glob("*.html"))[0]}
+    out = {}
+    with open_chromium() as driver:
+        for name, page in pages.items():
+            out[f"{name}_load_ms_median"] = statistics.median(load_ms(driver, page)
+                                                              for _ in range(loads))
+    return out
+
+
+def screenshots(report: Path, out: Path) -> list[Path]:
+    """Screenshots, 1280 px wide, of the overview and the first sequence page (tall enough
+    for its figures and image strip) as ``report_overview.png`` and ``report_sequence.png``."""
+    pages = [(report / "index.html", out / "report_overview.png", 1400),
+             (sorted((report / "sequences").glob("*.html"))[0], out / "report_sequence.png",
+              2300)]
+    for page, png, height in pages:
+        with open_chromium(1280, height) as driver:
+            driver.get(page.resolve().as_uri())
+            driver.save_screenshot(str(png))
+    return [p for _, p, _ in pages]
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--work", type=Path, default=Path("bench_out/report_scale"))
+    parser.add_argument("--methods", type=int, default=5)
+    parser.add_argument("--sequences", type=int, default=2)
+    parser.add_argument("--seeds", type=int, default=10)
+    parser.add_argument("--frames", type=int, default=40)
+    parser.add_argument("--loads", type=int, default=7)
+    parser.add_argument("--screenshots", nargs=2, type=Path, metavar=("REPORT", "OUT_DIR"),
+                        help="only take the docs' screenshots of an existing report")
+    args = parser.parse_args()
+    if args.screenshots:
+        for path in screenshots(*args.screenshots):
+            print(f"wrote {path}")
+        return
+    from egs_bench.report import build_report
+
+    missing = chromium_missing()
+    if missing:
+        raise SystemExit(f"cannot measure load times: {missing}")
+    runs = args.work / "runs"
+    t = time.perf_counter()
+    if not runs.is_dir():
+        make_runs(args.work, args.methods, args.sequences, args.seeds, args.frames)
+    made_s = time.perf_counter() - t
+    report = args.work / "report"
+    t = time.perf_counter()
+    result = build_report(runs, report, overwrite=report.exists())
+    build_s = time.perf_counter() - t
+    numbers = {"runs": result.runs, "sequences": result.sequences, "frames": args.frames,
+               "make_and_evaluate_runs_s": round(made_s, 1), "build_report_s": round(build_s, 1),
+               "report_mb": round(folder_mb(report), 2),
+               "assets_written": result.assets_written, "assets_reused": result.assets_reused,
+               **{k: round(v, 1) for k, v in measure(report, args.loads).items()}}
+    print(json.dumps(numbers, indent=1))
+
+
+if __name__ == "__main__":
+    main()

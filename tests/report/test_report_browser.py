@@ -1,0 +1,151 @@
+"""The report of a small real sweep, opened in headless Chromium.
+
+2 methods (egs, monogs) x 1 built-in sequence (``demo``'s scene, motion and camera, cut to 3
+frames) x 2 seeds, cpu preset with a few iterations, plus one run that failed (marked by the
+run folder's own failure guard). The page must load without console errors, list the expected
+leaderboard rows, reorder them when a column header is clicked, load every image and plot,
+and flag the failed run with its reason.
+
+Driver: selenium with Debian's ``chromium-driver``, because the driver comes from the same
+Debian release as the ``chromium`` it drives (no version mismatch, nothing downloaded), while
+playwright pins its own browser build and would need ``playwright install``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from pathlib import Path
+
+import pytest
+import yaml
+from bench_scripts import load_script
+from sweep_fixtures import worker_env
+
+from egs_bench.cli import main
+
+scale = load_script("report_scale")
+
+
+@pytest.fixture(scope="module")
+def chromium():
+    missing = scale.chromium_missing()
+    if missing:
+        pytest.skip(f"headless Chromium unavailable: {missing}")
+    with scale.open_chromium() as driver:
+        yield driver
+
+
+@pytest.fixture(scope="module")
+def sweep_out(tmp_path_factory) -> Path:
+    from egs_bench.datasets.registry import BUILTIN_SEQUENCES
+    from egs_bench.datasets.synthetic import make_synthetic
+    from egs_bench.experiments.spec import load_sweep
+    from egs_bench.experiments.sweep import run_sweep
+    from egs_bench.runs.folder import RunFolder
+
+    root = tmp_path_factory.mktemp("browser")
+    with pytest.MonkeyPatch.context() as mp:
+        worker_env(mp)
+        settings = dataclasses.asdict(BUILTIN_SEQUENCES["demo"])
+        settings.pop("description")
+        seq = make_synthetic(out=root / "data" / "demo", progress=False,
+                             **{**settings, "frames": 3})
+        sweep = root / "s.yaml"
+        sweep.write_text(yaml.safe_dump({
+            "methods": ["egs", "monogs"], "sequences": [str(seq)], "seeds": [0, 1],
+            "preset": "cpu", "device": "cpu", "protocol": "egs", "out": str(root / "out"),
+            "set": {"init_iters": 4, "tracking_iters": 3, "mapping_iters": 2},
+            "local": {"jobs": 2}}))
+        said: list[str] = []
+        report = run_sweep(load_sweep(sweep), say=said.append)
+    assert report.all_done, report.summary_md
+    out = root / "out"
+    assert any(line.startswith("report: ") for line in said), said
+    assert (out / "report" / "index.html").is_file()
+    # a third egs seed that crashed, marked failed the way every run is
+    good = out / "runs" / "demo" / "egs" / "seed0"
+    config = yaml.safe_load((good / "config.yaml").read_text())
+    failed = RunFolder.create(out / "runs" / "demo" / "egs" / "seed7", method="egs",
+                              sequence_name="demo", sequence_path=seq,
+                              config={**config, "seed": 7})
+    with pytest.raises(RuntimeError), failed.failure_guard():
+        raise RuntimeError("injected: out of memory at frame 2")
+    assert main(["report", str(out), "-o", str(out / "report"), "--overwrite"]) == 0
+    return out
+
+
+def _errors(driver) -> list[dict]:
+    return [e for e in driver.get_log("browser") if e["level"] == "SEVERE"]
+
+
+def _images(driver) -> list[tuple[str, bool, int]]:
+    return [tuple(x) for x in driver.execute_script(
+        "return Array.from(document.images).map(i => [i.src, i.complete, i.naturalWidth]);")]
+
+
+def _column(driver, table: str, index: int) -> list[str]:
+    return driver.execute_script(
+        "return Array.from(document.querySelectorAll(arguments[0] + ' tbody tr'))"
+        ".filter(r => !r.hidden).map(r => r.cells[arguments[1]].textContent.trim());",
+        table, index)
+
+
+@pytest.mark.slow
+def test_report_of_a_real_sweep_in_chromium(sweep_out: Path, chromium) -> None:
+    from selenium.webdriver.common.by import By
+
+    report = sweep_out / "report"
+    chromium.get((report / "index.html").resolve().as_uri())
+    assert _errors(chromium) == []
+    heads = [th.text for th in chromium.find_elements(By.CSS_SELECTOR,
+                                                      "#leaderboard-egs thead th")]
+    assert _column(chromium, "#leaderboard-egs", 0) == ["egs", "monogs"]
+
+    # sorting by a metric column orders the rows by its values, a second click reverses them
+    ate = heads.index("demo ATE [cm] ↓")
+    header = chromium.find_elements(By.CSS_SELECTOR, "#leaderboard-egs thead th")[ate]
+    header.click()
+    values = [float(v.split(" ± ")[0]) for v in _column(chromium, "#leaderboard-egs", ate)]
+    assert values == sorted(values)
+    ascending = _column(chromium, "#leaderboard-egs", 0)
+    header.click()
+    assert _column(chromium, "#leaderboard-egs", 0) == ascending[::-1]
+    seeds = chromium.find_elements(By.CSS_SELECTOR, "#runs thead th")[3]
+    seeds.click()
+    seeds.click()
+    assert _column(chromium, "#runs", 3) == ["7", "1", "1", "0", "0"]
+
+    # the failed run is flagged with its reason
+    flagged = chromium.find_elements(By.CSS_SELECTOR, "#flagged tbody tr")
+    assert len(flagged) == 1
+    cells = [td.text for td in flagged[0].find_elements(By.TAG_NAME, "td")]
+    assert cells[0] == "runs/demo/egs/seed7" and cells[4] == "failed"
+    assert "injected: out of memory at frame 2" in cells[5]
+    assert "flag" in flagged[0].get_attribute("class")
+
+    # the method filter hides the other method's rows
+    chromium.execute_script("const s = document.querySelector('select[data-axis=method]');"
+                            "s.value = 'monogs'; s.dispatchEvent(new Event('change'));")
+    assert _column(chromium, "#leaderboard-egs", 0) == ["monogs"]
+    assert set(_column(chromium, "#runs", 1)) == {"monogs"}
+
+    # every page: no console error, every image and plot loaded
+    pages = [report / "index.html", *sorted((report / "sequences").glob("*.html")),
+             *sorted((report / "runs").glob("*.html"))]
+    assert len(pages) == 1 + 1 + 5
+    counts = {}
+    for page in pages:
+        chromium.get(page.resolve().as_uri())
+        assert _errors(chromium) == [], page
+        images = _images(chromium)
+        assert all(complete and width > 0 for _, complete, width in images), (page, images)
+        counts[page.name] = len(images)
+    assert counts["demo.html"] == 5  # top view, per axis, ATE, PSNR, image strip
+    assert counts["runs-demo-egs-seed0.html"] >= 2 + 3  # ATE, timing, thumbnails
+    chromium.get((report / "runs" / "runs-demo-egs-seed7.html").resolve().as_uri())
+    status = chromium.find_element(By.ID, "status")
+    assert "flag" in status.get_attribute("class")
+    assert "injected: out of memory at frame 2" in status.text
+    manifest = json.loads((report / "report.json").read_text())
+    assert manifest["runs"] == 5 and manifest["kind"] == "sweep"
