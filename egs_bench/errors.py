@@ -18,7 +18,7 @@ from __future__ import annotations
 import signal
 from pathlib import Path
 
-#: exit codes of the ``egs-bench`` command (documented in the README, "Guarantees")
+#: exit codes of the ``egs-bench`` command (documented in docs/guide/running.md, "Guarantees")
 EXIT_OK = 0
 EXIT_USAGE = 2
 EXIT_DATA = 3

@@ -25,7 +25,7 @@ class RecordingPreset:
         sensors: the rig's sensors, recorded as ``recording.preset_sensors`` in ``meta.yaml``
             (for reference only: ``sensors`` there come from the data or ``--sensor``).
         downloads: what a user downloads.
-        notes: conventions and caveats (README).
+        notes: conventions and caveats (docs/guide/data.md).
     """
 
     name: str

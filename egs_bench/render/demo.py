@@ -1,5 +1,6 @@
 """A small synthetic RGB-D view (room corner with textured walls and a sphere) turned into a
-Gaussian map and rendered: the README's render example and a quick visual check."""
+Gaussian map and rendered: the render example of docs/guide/other-systems.md and a quick
+visual check."""
 
 from __future__ import annotations
 

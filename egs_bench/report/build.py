@@ -215,7 +215,7 @@ def write_side_report(source: Path, out: Path, say: Callable[[str], None], *,
     try:
         result = build_report(source, out, overwrite=is_report_folder(out), protocols=protocols,
                               evaluate_missing=evaluate_missing)
-    except Exception as exc:  # noqa: BLE001 (the runs are the result; the report is a view)
+    except Exception as exc:
         reraise_interruption(exc)
         say(f"warning: report not written ({type(exc).__name__}: {exc}); the runs are "
             f"unaffected, retry with `egs-bench report {source} -o {out} --overwrite`")

@@ -8,20 +8,18 @@ be read become a line in :attr:`RunRecord.problems` instead of an exception.
 
 from __future__ import annotations
 
-import json
-from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from egs_bench.errors import EgsBenchError, InputError
 from egs_bench.eval.leaderboard import Leaderboard, build
+from egs_bench.eval.metrics_file import RunMetrics, read_metrics
 from egs_bench.eval.protocols import DEFAULT_PROTOCOL, get_protocol
 from egs_bench.eval.results import METRICS, RunResult, collect_results
 from egs_bench.eval.tables import slug
 from egs_bench.experiments.spec import STATE_DIR
 from egs_bench.experiments.sweep import SUMMARY_CSV
-from egs_bench.fileio import read_text
 from egs_bench.runs.folder import (
     METRICS_FILE,
     RunFolder,
@@ -48,7 +46,8 @@ class RunRecord:
         info: the parsed ``run.yaml`` (empty when unreadable).
         config: the parsed ``config.yaml`` (empty when absent or unreadable).
         status: ``status.json`` (``None`` when unreadable).
-        metrics: the ``metrics.json`` mapping under the first protocol (``None`` if none).
+        metrics: the run's ``metrics.json`` when it is under the first protocol (``None`` if
+            none).
         timing: ``timing.json`` (``None`` when absent or unreadable).
         slam_stats: ``slam_stats.json`` (``None`` when absent or unreadable).
         keyframes: keyframe frame indices (empty when none were written).
@@ -61,7 +60,7 @@ class RunRecord:
     info: dict[str, Any] = field(default_factory=dict)
     config: dict[str, Any] = field(default_factory=dict)
     status: RunStatus | None = None
-    metrics: dict[str, Any] | None = None
+    metrics: RunMetrics | None = None
     timing: RunTiming | None = None
     slam_stats: dict[str, Any] | None = None
     keyframes: list[int] = field(default_factory=list)
@@ -122,10 +121,11 @@ def metrics_protocols(run_dirs: list[Path]) -> list[str]:
     reports them)."""
     found: set[str] = set()
     for path in run_dirs:
+        if not (path / METRICS_FILE).is_file():
+            continue
         try:
-            data = json.loads(read_text(path / METRICS_FILE))
-            name = data["protocol"]["name"]
-        except (EgsBenchError, OSError, ValueError, KeyError, TypeError):
+            name = read_metrics(path).protocol
+        except EgsBenchError:
             continue
         try:
             get_protocol(name)
@@ -181,10 +181,9 @@ def read_run_record(result: RunResult, page: str, protocol: str) -> RunRecord:
     keyframes = attempt("keyframes.txt", run.read_keyframes)
     record["keyframes"] = [] if keyframes is None else [int(k) for k in keyframes]
     if run.metrics_path.is_file():
-        metrics = attempt(METRICS_FILE, lambda: _read_json(run.metrics_path))
-        if isinstance(metrics, Mapping) and isinstance(metrics.get("protocol"), Mapping) \
-                and metrics["protocol"].get("name") == protocol:
-            record["metrics"] = dict(metrics)
+        metrics = attempt(METRICS_FILE, lambda: read_metrics(run.path))
+        if metrics is not None and metrics.protocol == protocol:
+            record["metrics"] = metrics
     return RunRecord(**record, problems=problems)
 
 

@@ -91,7 +91,7 @@ def _axis_values(r: RunRecord, labels: Labels) -> dict[str, str]:
             "settings": labels.get((res.method or "", res.settings_key), "")}
 
 
-def _row_settings(board: Leaderboard, row) -> dict[str, Any]:  # noqa: ANN001 (RowKey)
+def _row_settings(board: Leaderboard, row) -> dict[str, Any]:
     for (key, _), cell in board.cells.items():
         if key == row and cell.runs:
             return cell.runs[0].settings

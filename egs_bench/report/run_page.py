@@ -15,6 +15,7 @@ from urllib.parse import quote
 
 import numpy as np
 
+from egs_bench.eval.metrics_file import RunMetrics
 from egs_bench.report.assets import AssetStore
 from egs_bench.report.collect import RunRecord
 from egs_bench.report.config_diff import ConfigRow, config_rows, preset_baseline
@@ -46,28 +47,26 @@ def _fmt(value: Any, digits: int = 4) -> str:
     return str(value)
 
 
-def metric_items(metrics: dict[str, Any] | None) -> list[tuple[str, str]]:
-    """The numbers of ``metrics.json``: ATE statistics [cm], rendering means, speed,
-    coverage."""
-    if not metrics:
+def metric_items(metrics: RunMetrics | None) -> list[tuple[str, str]]:
+    """The numbers of ``metrics.json``: ATE statistics [cm], rendering means, coverage."""
+    if metrics is None:
         return []
     out: list[tuple[str, str]] = []
-    ate = metrics.get("ate") or {}
+    ate = metrics.ate
     for key in ("rmse_m", "mean_m", "median_m", "std_m", "max_m"):
         if isinstance(ate.get(key), int | float):
             out.append((f"ATE {key.removesuffix('_m')} [cm]", f"{100 * ate[key]:.2f}"))
     for key in ("n_matched", "alignment", "frames"):
         if key in ate:
             out.append((f"ATE {key.replace('_', ' ')}", _fmt(ate[key])))
-    rendering = metrics.get("rendering") or {}
+    rendering = metrics.rendering or {}
     for key, label in (("psnr_db", "PSNR [dB]"), ("ssim", "SSIM"), ("lpips", "LPIPS"),
                        ("n_frames", "rendered frames scored")):
         if rendering.get(key) is not None:
             out.append((label, _fmt(rendering[key])))
-    coverage = metrics.get("coverage") or {}
-    if coverage:
-        out.append(("frames covered", f"{coverage.get('frames_processed')} of "
-                                      f"{coverage.get('frames_in_sequence')}"))
+    if metrics.frames_processed is not None:
+        out.append(("frames covered",
+                    f"{metrics.frames_processed} of {metrics.frames_in_sequence}"))
     return out
 
 

@@ -109,7 +109,7 @@ def build_sequence_page(name: str, page_name: str, data: ReportData, sources: Ru
     else:
         try:
             page.facts = _facts(sequence_summary(seq))
-        except Exception as exc:  # noqa: BLE001 (facts are optional on the page)
+        except Exception as exc:
             page.notes.append(f"{seq.path}: sequence facts not computed ({exc})")
     ates = [(label, ate) for label, r in reps if (ate := sources.ate(r)) is not None]
     if ates:
@@ -122,7 +122,8 @@ def build_sequence_page(name: str, page_name: str, data: ReportData, sources: Ru
             curves, p, xlabel="time [s]", ylabel="position error [cm]"))))
     psnr = []
     for label, r in reps:
-        per_frame = ((r.metrics or {}).get("rendering") or {}).get("per_frame") or {}
+        rendering = (r.metrics.rendering if r.metrics is not None else None) or {}
+        per_frame = rendering.get("per_frame") or {}
         if per_frame.get("frame") and per_frame.get("psnr_db"):
             psnr.append((label, np.asarray(per_frame["frame"]),
                          np.asarray(per_frame["psnr_db"], dtype=float)))

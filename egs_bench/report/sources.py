@@ -49,7 +49,7 @@ class RunSources:
         if path not in self._sequences:
             try:
                 self._sequences[path] = open_sequence(path)
-            except Exception as exc:  # noqa: BLE001 (a missing sequence only loses figures)
+            except Exception as exc:
                 self._note(path, exc)
                 self._sequences[path] = None
         return self._sequences[path]
@@ -67,7 +67,7 @@ class RunSources:
             try:
                 self._ates[path] = compute_run_ate(RunFolder.open(path), self.protocol,
                                                    self.sequence(record))
-            except Exception as exc:  # noqa: BLE001 (one bad trajectory only loses figures)
+            except Exception as exc:
                 self._note(path, exc)
                 self._ates[path] = None
         return self._ates[path]

@@ -1,6 +1,6 @@
 """Sharp edges of the command line (issue 36, items 1, 7, 9, 12): paths and values are printed
 as they are (never read as rich markup), every option is checked where it is parsed with one
-line naming it, and the commands agree with each other and with the README."""
+line naming it, and the commands agree with each other and with the command table of README.md."""
 
 from __future__ import annotations
 

@@ -8,11 +8,11 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from eval_fixtures import make_run
 
 from egs_bench.errors import InputError
 from egs_bench.eval.evaluate import evaluate_run
 from egs_bench.eval.metrics_file import METRICS_SCHEMA_VERSION, parse_metrics, read_metrics
+from tests.helpers.eval_fixtures import make_run
 
 DATA = Path(__file__).parent / "metrics_files"
 

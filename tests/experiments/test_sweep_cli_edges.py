@@ -1,4 +1,4 @@
-"""`egs-bench sweep` as the README describes it (issue 36, item 12): `--dry-run` writes
+"""`egs-bench sweep` as docs/guide/experiments.md describes it: `--dry-run` writes
 nothing, `--status` exits 1 unless every run is done, and the submitit backend leaves no
 literal `%j` folder."""
 

@@ -12,7 +12,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-from sweep_fixtures import BAD, GOOD, make_sequence
 
 from egs_bench.cli import main
 from egs_bench.datasets.sequence import Sequence
@@ -23,6 +22,7 @@ from egs_bench.report.collect import collect_report
 from egs_bench.report.config_diff import config_rows, preset_baseline
 from egs_bench.report.overview import provenance
 from egs_bench.runs.folder import RunFolder
+from tests.helpers.sweep_fixtures import BAD, GOOD, GOOD_PATH, make_sequence
 
 
 @pytest.fixture(scope="module")
@@ -301,18 +301,18 @@ def test_demo_writes_its_report_and_a_foreign_folder_only_warns(tmp_path: Path) 
 
     seq = make_sequence(tmp_path / "data", "sd", 6, 0)
     said: list[str] = []
-    result = run_demo(tmp_path / "demo", sequence=str(seq), methods=("sweep_fixtures:GOOD",),
+    result = run_demo(tmp_path / "demo", sequence=str(seq), methods=(GOOD_PATH,),
                       say=said.append, progress=False)
     assert result.report is not None and result.report.runs == 1
     assert is_report_folder(tmp_path / "demo" / "report")
-    again = run_demo(tmp_path / "demo", sequence=str(seq), methods=("sweep_fixtures:GOOD",),
+    again = run_demo(tmp_path / "demo", sequence=str(seq), methods=(GOOD_PATH,),
                      say=said.append, progress=False)
     assert again.report is not None  # its own earlier report is replaced
     foreign = tmp_path / "demo2" / "report"
     foreign.mkdir(parents=True)
     (foreign / "notes.txt").write_text("keep me")
     said.clear()
-    third = run_demo(tmp_path / "demo2", sequence=str(seq), methods=("sweep_fixtures:GOOD",),
+    third = run_demo(tmp_path / "demo2", sequence=str(seq), methods=(GOOD_PATH,),
                      say=said.append, progress=False)
     assert third.report is None and third.runs  # the runs are there, the report is not
     assert [s for s in said if s.startswith("warning: report not written")]

@@ -20,9 +20,9 @@ from pathlib import Path
 import pytest
 import yaml
 from bench_scripts import load_script
-from sweep_fixtures import worker_env
 
 from egs_bench.cli import main
+from tests.helpers.sweep_fixtures import worker_env
 
 scale = load_script("report_scale")
 
