@@ -19,7 +19,7 @@ from pathlib import Path
 
 import pytest
 import yaml
-from bench_scripts import load_script
+from tests.helpers.bench_scripts import load_script
 
 from egs_bench.cli import main
 from tests.helpers.sweep_fixtures import worker_env
