@@ -19,9 +19,9 @@ from pathlib import Path
 
 import pytest
 import yaml
-from tests.helpers.bench_scripts import load_script
 
 from egs_bench.cli import main
+from tests.helpers.bench_scripts import load_script
 from tests.helpers.sweep_fixtures import worker_env
 
 scale = load_script("report_scale")
