@@ -135,6 +135,14 @@ def build_run_page(record: RunRecord, sources: RunSources, store: AssetStore,
         page.figures.append(Picture("Wall time and tracking iterations per frame", store.figure(
             lambda p: plot_run_timing(timing.per_frame_s, iters, record.keyframes,
                                       divergent_frames(page.divergences), p))))
+    sizes = stats.get("gaussians_per_frame")
+    if isinstance(sizes, list) and sizes and all(isinstance(g, int) for g in sizes):
+        from egs_bench.report.figures import plot_curves
+
+        size_curve = [(record.result.method or "map", np.arange(len(sizes)),
+                       np.asarray(sizes, dtype=float))]
+        page.figures.append(Picture("Map size over time", store.figure(lambda p: plot_curves(
+            size_curve, p, xlabel="frame", ylabel="Gaussians"))))
     seq = sources.sequence(record)
     method = record.result.method or ""
     meta = seq.meta if seq is not None else None

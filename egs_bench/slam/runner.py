@@ -104,9 +104,11 @@ def run_slam(seq: SequenceView, out: str | Path, *, method_name: str, config: Sl
         bar = tqdm(total=n, desc=f"{method_name} {seq.name}", unit="frame", disable=not progress)
         t_start = time.perf_counter()
         run.set_progress(0, n)
+        gaussians_per_frame: list[int] = []  # the map's size after each frame (its mapping)
 
         def on_frame(rep: FrameReport) -> None:
             elapsed = time.perf_counter() - t_start
+            gaussians_per_frame.append(len(system.gmap))
             run.set_progress(rep.index + 1, n)
             bar.update(1)
             bar.set_postfix(loss=f"{rep.loss:.4f}", fps=f"{bar.n / max(elapsed, 1e-9):.2f}",
@@ -140,7 +142,8 @@ def run_slam(seq: SequenceView, out: str | Path, *, method_name: str, config: Sl
             np.array([s.exp_a for s in result.states]),
             np.array([s.exp_b for s in result.states])))
         stats = {"frames": n, "keyframes": len(result.keyframes),
-                 "gaussians": len(result.gmap), "divergences": result.divergences,
+                 "gaussians": len(result.gmap), "gaussians_per_frame": gaussians_per_frame,
+                 "divergences": result.divergences,
                  "tracking_iterations": [r.iterations for r in result.reports],
                  "fps": n / total_wall if total_wall > 0 else None}
         write_text_atomic(run.artifact_path("slam_stats.json"),

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import re
+import shutil
 from html.parser import HTMLParser
 from pathlib import Path
 
@@ -317,3 +318,20 @@ def test_demo_writes_its_report_and_a_foreign_folder_only_warns(tmp_path: Path) 
     assert third.report is None and third.runs  # the runs are there, the report is not
     assert [s for s in said if s.startswith("warning: report not written")]
     assert (foreign / "notes.txt").read_text() == "keep me"
+
+
+def test_run_page_plots_the_map_size_over_time(runs_root: Path, tmp_path: Path) -> None:
+    """A run whose ``slam_stats.json`` has the map's size per frame (as the built-in SLAM
+    runner writes it) gets a map-size plot; one without it does not."""
+    root = tmp_path / "runs"
+    shutil.copytree(runs_root / "sa" / "good" / "seed0", root / "sa" / "good" / "seed0")
+    shutil.copytree(runs_root / "sa" / "good" / "seed1", root / "sa" / "good" / "seed1")
+    (root / "sa" / "good" / "seed0" / "slam_stats.json").write_text(json.dumps(
+        {"frames": 3, "gaussians": 130, "gaussians_per_frame": [100, 120, 130],
+         "divergences": [], "tracking_iterations": [0, 20, 20]}))
+    result = build_report(root, tmp_path / "rep")
+    with_sizes = (result.out / "runs" / "sa-good-seed0.html").read_text()
+    without = (result.out / "runs" / "sa-good-seed1.html").read_text()
+    assert "Map size over time" in with_sizes and "Map size over time" not in without
+    assert len(_Page(result.out / "runs" / "sa-good-seed0.html").images) == \
+        len(_Page(result.out / "runs" / "sa-good-seed1.html").images) + 1

@@ -108,6 +108,10 @@ def test_egs_end_to_end_writes_complete_run(egs_run) -> None:
     assert float(load_ply(run.path / "map.ply").colors.min()) >= -1e-6
     stats = json.loads((run.path / "slam_stats.json").read_text())
     assert stats["gaussians"] > 0
+    # the map's size after every frame, ending at the saved map's
+    sizes = stats["gaussians_per_frame"]
+    assert len(sizes) == len(seq) and sizes[-1] == stats["gaussians"]
+    assert sizes[0] > 0 and min(sizes) > 0
 
 
 @pytest.fixture(scope="module")
