@@ -64,7 +64,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import re
 import sys
 from collections.abc import Callable
@@ -80,6 +79,7 @@ sys.path.insert(0, str(ROOT))
 
 from egs_bench.errors import ConfigError, EgsBenchError, InputError  # noqa: E402
 from egs_bench.fileio import read_text  # noqa: E402
+from egs_bench.runs.folder import read_json_object  # noqa: E402
 
 MEASURED_JSON = ROOT / "docs" / "notes" / "gpu_check_h200_2026-11-27_first.json"
 #: tolerance of ``--check`` on the measured FPS (relative)
@@ -226,16 +226,6 @@ def build_schedule(label: str, slam: dict[str, Any], tracking_iters: list[int],
 _REMOVED = re.compile(r"frame (\d+): keyframe; window -\[([^\]]*)\]")
 
 
-def _read_json(path: Path) -> dict[str, Any]:
-    try:
-        data = json.loads(read_text(path))
-    except json.JSONDecodeError as exc:
-        raise InputError(path, f"not JSON ({exc.msg}, line {exc.lineno})") from None
-    if not isinstance(data, dict):
-        raise InputError(path, "not a JSON object")
-    return data
-
-
 def schedule_from_run(run: Path) -> Schedule:
     """Count the work of a finished SLAM run folder (see the module docstring).
 
@@ -250,7 +240,7 @@ def schedule_from_run(run: Path) -> Schedule:
     if not isinstance(config, dict) or not isinstance(config.get("slam"), dict):
         raise InputError(cfg_path, "no 'slam' configuration (not a SLAM run)")
     stats_path = run / "slam_stats.json"
-    iters = _read_json(stats_path).get("tracking_iterations")
+    iters = read_json_object(stats_path).get("tracking_iterations")
     if (not isinstance(iters, list) or not iters
             or not all(isinstance(i, int) and i >= 0 for i in iters)):
         raise InputError(stats_path, "'tracking_iterations' must be a non-empty list of "
@@ -274,7 +264,7 @@ def schedule_from_run(run: Path) -> Schedule:
 # ------------------------------------------------------------------ the measured H200 runs
 
 def _measured(path: Path = MEASURED_JSON) -> dict[str, Any]:
-    data = _read_json(path)
+    data = read_json_object(path)
     try:
         return {m: data["methods"][m] for m in FAMILY_METHOD.values()} | {
             "overhead": {o["method"]: o for o in data["overhead"]}}

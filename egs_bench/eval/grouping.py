@@ -72,7 +72,9 @@ def _fmt_value(value: Any) -> str:
     return str(value)
 
 
-def _differing_keys(settings: Sequence[dict[str, Any]]) -> list[str]:
+def differing_keys(settings: Sequence[dict[str, Any]]) -> list[str]:
+    """The keys whose values are not the same in all of ``settings`` (a key missing from some
+    counts as differing), sorted."""
     keys = sorted(set().union(*(s.keys() for s in settings)))
     missing = object()
     return [k for k in keys if len({repr(s.get(k, missing)) for s in settings}) > 1]
@@ -90,7 +92,7 @@ def settings_labels(runs: Iterable[RunResult]) -> dict[tuple[str, str], str]:
         if len(variants) == 1:
             out[(method, next(iter(variants)))] = ""
             continue
-        diff = _differing_keys([r.settings for r in variants.values()])
+        diff = differing_keys([r.settings for r in variants.values()])
         for key, r in variants.items():
             if r.settings_name:
                 out[(method, key)] = r.settings_name

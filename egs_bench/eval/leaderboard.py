@@ -179,7 +179,7 @@ def to_frame(board: Leaderboard, by: str = "sequence") -> TableData:
     return TableData(mean, std, n, marker, ranked)
 
 
-def _ranks(data: TableData, by: str) -> pd.DataFrame:
+def rank_cells(data: TableData, by: str) -> pd.DataFrame:
     """1 best, 2 second, 0 otherwise; partial rows never compete with complete ones."""
     mean = data.mean.copy()
     ranks = pd.DataFrame(0, index=mean.index, columns=mean.columns, dtype=int)
@@ -205,7 +205,7 @@ def _competing(values: pd.Series, complete: np.ndarray) -> pd.Series:
 
 
 def _cells(data: TableData, by: str, style: str) -> tuple[pd.DataFrame, int]:
-    ranks = _ranks(data, by)
+    ranks = rank_cells(data, by)
     usual = common_n(data.n.to_numpy().ravel())
     out = pd.DataFrame("", index=data.mean.index, columns=data.mean.columns, dtype=object)
     for col in data.mean.columns:

@@ -25,8 +25,8 @@ from egs_bench.runs.folder import (
     RunFolder,
     RunStatus,
     RunTiming,
-    _read_json,  # the run folder's own JSON-object reader (one line naming the file)
     find_runs,
+    read_json_object,
 )
 
 #: ``slam_stats.json`` (written by the built-in SLAM runner next to the map).
@@ -176,7 +176,7 @@ def read_run_record(result: RunResult, page: str, protocol: str) -> RunRecord:
     record["status"] = attempt("status.json", run.read_status)
     record["timing"] = attempt("timing.json", run.read_timing)
     stats_path = run.path / SLAM_STATS_FILE
-    record["slam_stats"] = attempt(SLAM_STATS_FILE, lambda: _read_json(stats_path)
+    record["slam_stats"] = attempt(SLAM_STATS_FILE, lambda: read_json_object(stats_path)
                                    if stats_path.is_file() else None)
     keyframes = attempt("keyframes.txt", run.read_keyframes)
     record["keyframes"] = [] if keyframes is None else [int(k) for k in keyframes]

@@ -15,8 +15,8 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from egs_bench import __version__
-from egs_bench.eval.grouping import _differing_keys
-from egs_bench.eval.leaderboard import AVERAGE, Leaderboard, _ranks, to_frame
+from egs_bench.eval.grouping import differing_keys
+from egs_bench.eval.leaderboard import AVERAGE, Leaderboard, rank_cells, to_frame
 from egs_bench.eval.results import EVALUATED, METRICS
 from egs_bench.eval.tables import common_n, header
 from egs_bench.provenance import code_revision
@@ -71,7 +71,7 @@ def settings_columns(runs: list[RunRecord]) -> list[str]:
     keys: list[str] = []
     for variants in by_method.values():
         if len(variants) > 1:
-            keys += [k for k in _differing_keys(list(variants.values())) if k not in keys]
+            keys += [k for k in differing_keys(list(variants.values())) if k not in keys]
     return sorted(keys)
 
 
@@ -103,7 +103,7 @@ def leaderboard_table(board: Leaderboard, columns: list[str], labels: Labels) ->
     then per sequence (and ``Avg.`` over several) one column per metric: mean ± std over the
     seeds, best bold, ``(n=k)`` where a cell has another number of runs than most."""
     data = to_frame(board, "sequence")
-    ranks = _ranks(data, "sequence")
+    ranks = rank_cells(data, "sequence")
     usual = common_n(data.n.to_numpy().ravel())
     heads = [HtmlCell("Method")] + [HtmlCell(setting_label(k)) for k in columns]
     for group, key in data.mean.columns:

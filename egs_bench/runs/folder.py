@@ -179,7 +179,9 @@ def _read_progress(path: Path, value: Any) -> tuple[int, int] | None:
     return int(value["done"]), int(value["total"])
 
 
-def _read_json(path: Path) -> dict[str, Any]:
+def read_json_object(path: Path) -> dict[str, Any]:
+    """A JSON file whose top level is an object; anything else is an :class:`InputError`
+    naming the file."""
     text = read_text(path)
     try:
         data = json.loads(text)
@@ -350,7 +352,7 @@ class RunFolder:
         if lock_is_held(path / LOCK_FILE):
             who = ""
             with contextlib.suppress(InputError):
-                data = _read_json(path / STATUS_FILE)
+                data = read_json_object(path / STATUS_FILE)
                 if data.get("pid") is not None:
                     who = f" (pid {data.get('pid')} on {data.get('host')})"
             raise OutputError(path, f"is being written by another egs-bench process{who}; "
@@ -579,7 +581,7 @@ class RunFolder:
             InputError: missing or malformed file, or an unknown state.
         """
         path = self.path / STATUS_FILE
-        data = _read_json(path)
+        data = read_json_object(path)
         state = data.get("state")
         if state not in STATES:
             raise InputError(path, f"state must be one of {', '.join(STATES)}, found {state!r}")
@@ -784,7 +786,7 @@ class RunFolder:
         path = self.path / TIMING_FILE
         if not path.is_file():
             return None
-        data = _read_json(path)
+        data = read_json_object(path)
         try:
             total = float(data["total_wall_s"])
             per_frame = np.asarray(data.get("per_frame_s", []), dtype=np.float64)
