@@ -25,8 +25,6 @@ DEMO_METHODS = ("egs", "monogs")
 DEMO_PRESET = "cpu"
 # Budget override of the demo: the sequence's own 224x128 instead of the cpu budget's half.
 DEMO_OPTIONS = {"budget.resolution_scale": 1.0}
-#: The demo's HTML report, under its output folder.
-REPORT_DIR = "report"
 
 
 @dataclass
@@ -128,9 +126,9 @@ def run_demo(out: str | Path, *, sequence: str = DEMO_SEQUENCE,
         result.comparison = qualitative_figure(list(result.runs.values()), path, frames, crops)
         say(f"comparison (observed | renders | sharp GT, zoomed crops, PSNR vs sharp GT): "
             f"{result.comparison}")
-    from egs_bench.report import write_side_report
+    from egs_bench.report import SIDE_REPORT_DIR, write_side_report
 
-    result.report = write_side_report(out / "runs", out / REPORT_DIR, say)
+    result.report = write_side_report(out / "runs", out / SIDE_REPORT_DIR, say)
     say(f"frame panel: {panel}")
     for name, paths in result.plots.items():
         say(f"plots ({name}): " + ", ".join(str(p) for p in paths))

@@ -59,8 +59,10 @@ def read_text(path: str | Path, what: str = "file") -> str:
         raise InputError(path, f"cannot read ({exc.strerror or exc})") from None
 
 
-def read_yaml_mapping(path: str | Path, what: str = "file") -> dict[str, Any]:
-    """The YAML mapping stored in ``path``.
+def read_yaml_mapping(path: str | Path, what: str = "file", *,
+                      empty_is_mapping: bool = False) -> dict[str, Any]:
+    """The YAML mapping stored in ``path``; with ``empty_is_mapping`` an empty file reads as
+    ``{}`` (run folders' own files, which may be written empty).
 
     Raises:
         InputError: as :func:`read_text`, or not valid YAML, or not a mapping.
@@ -72,6 +74,8 @@ def read_yaml_mapping(path: str | Path, what: str = "file") -> dict[str, Any]:
         data = yaml.safe_load(read_text(path, what))
     except yaml.YAMLError as exc:
         raise InputError(path, f"not valid YAML ({' '.join(str(exc).split())})") from None
+    if data is None and empty_is_mapping:
+        data = {}
     if not isinstance(data, dict):
         raise InputError(path, "expected a YAML mapping")
     return data

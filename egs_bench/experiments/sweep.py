@@ -42,7 +42,6 @@ BACKENDS = ("local", "slurm")
 SUMMARY_CSV = "sweep_summary.csv"
 SUMMARY_MD = "sweep_summary.md"
 DONE_STATES = ("done",)
-REPORT_DIR = "report"
 
 
 @dataclass
@@ -279,7 +278,7 @@ def run_sweep(spec: SweepSpec, *, out: Path | None = None,
     # a dry run writes nothing, not even the summary (an earlier real summary stays)
     md = summary_markdown(df) if dry_run else write_summary(out, df)
     if html_report and not (dry_run or status_only) and (wait or backend == "local"):
-        from egs_bench.report import write_side_report
+        from egs_bench.report import SIDE_REPORT_DIR, write_side_report
 
-        write_side_report(out, out / REPORT_DIR, say, protocols=[spec.protocol])
+        write_side_report(out, out / SIDE_REPORT_DIR, say, protocols=[spec.protocol])
     return SweepReport(out, runs, [r.run_id for r in selected], df, md, outcomes, ungenerated)

@@ -10,6 +10,13 @@ from ``file://`` (no server, no network, no script library).
   the folder atomically.
 """
 
-from egs_bench.report.build import ReportResult, build_report, is_report_folder, write_side_report
+from egs_bench.report.build import (
+    SIDE_REPORT_DIR,
+    ReportResult,
+    build_report,
+    is_report_folder,
+    write_side_report,
+)
 
-__all__ = ["ReportResult", "build_report", "is_report_folder", "write_side_report"]
+__all__ = ["SIDE_REPORT_DIR", "ReportResult", "build_report", "is_report_folder",
+           "write_side_report"]

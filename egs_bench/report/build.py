@@ -203,6 +203,10 @@ def build_report(source: str | Path, out: str | Path, *, overwrite: bool = False
                         _folder_size(out))
 
 
+#: The folder a demo or a sweep writes its report into, under its own output folder.
+SIDE_REPORT_DIR = "report"
+
+
 def write_side_report(source: Path, out: Path, say: Callable[[str], None], *,
                       protocols: list[str] | None = None,
                       evaluate_missing: bool = False) -> ReportResult | None:

@@ -65,6 +65,7 @@ from egs_bench.fileio import (
     lock_is_held,
     owner_note,
     read_text,
+    read_yaml_mapping,
     to_plain,
     write_text_atomic,
 )
@@ -193,16 +194,7 @@ def read_json_object(path: Path) -> dict[str, Any]:
 
 
 def _read_yaml(path: Path) -> dict[str, Any]:
-    text = read_text(path)
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        raise InputError(path, f"not valid YAML ({exc})".replace("\n", " ")) from None
-    if data is None:
-        data = {}
-    if not isinstance(data, dict):
-        raise InputError(path, "expected a YAML mapping")
-    return data
+    return read_yaml_mapping(path, empty_is_mapping=True)
 
 
 def _dump_yaml(data: Mapping[str, Any]) -> str:
