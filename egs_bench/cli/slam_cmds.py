@@ -6,7 +6,7 @@ from pathlib import Path
 
 import typer
 
-from egs_bench.cli.app import SEED_MAX, app
+from egs_bench.cli.app import QUIET, SEED_MAX, app
 from egs_bench.cli.choices import ListWhat, SlamPreset
 
 
@@ -32,7 +32,7 @@ def run_cmd(
                                           help="Process only the first N frames (N >= 1)."),
     evaluate: bool = typer.Option(False, "--eval",
                                   help="Evaluate the run afterwards (writes metrics.json)."),
-    quiet: bool = typer.Option(False, "--quiet", help="No progress bar."),
+    quiet: bool = QUIET,
     overwrite: bool = typer.Option(False, "--overwrite",
                                    help="Replace an existing run folder at --out (only one "
                                         "written by egs-bench; other files in it are kept)."),
@@ -57,10 +57,10 @@ def run_cmd(
                 max_frames=max_frames, progress=not quiet, **extra)
     typer.echo(f"run folder: {run.path}")
     if evaluate:
+        from egs_bench.cli.eval_cmds import print_metrics
         from egs_bench.eval.evaluate import evaluate_run
 
-        evaluate_run(run.path)
-        typer.echo(f"metrics: {run.metrics_path}")
+        print_metrics(evaluate_run(run.path, progress=not quiet), run.metrics_path)
 
 
 def _echo_methods() -> None:

@@ -201,7 +201,9 @@ def generate_sequence(
 
     Args:
         source: the latent scene.
-        t_start_us, t_end_us: exposure windows, [N] int64, non-empty and non-overlapping.
+        t_start_us: exposure starts, [N] int64 microseconds.
+        t_end_us: exposure ends, [N] int64 microseconds; each window non-empty, none
+            overlapping the next.
         out: destination folder; written under a temporary name, then renamed.
         meta_extra: extra ``meta.yaml`` entries (name, source, scene description...).
         sim: event simulator settings (thresholds, eps, noise...).

@@ -1,6 +1,6 @@
 """Export a canonical sequence in the layouts external SLAM systems read unchanged.
 
-Formats (``egs-bench export SEQ OUT --format F``):
+Formats (``egs-bench export SEQ -o OUT --format F``):
 
 ``tum-rgbd`` (MonoGS ``type: tum``, ORB-SLAM2 ``rgbd_tum``, Photo-SLAM ``tum_rgbd``)::
 

@@ -160,7 +160,7 @@ def test_undistortion_moves_points_to_their_pinhole_projection(tmp_path):
 
 
 def _export_tum(tiny_sequence: Path, out: Path) -> Path:
-    assert main(["export", str(tiny_sequence), str(out), "--format", "tum-rgbd"]) == 0
+    assert main(["export", str(tiny_sequence), "-o", str(out), "--format", "tum-rgbd"]) == 0
     return out
 
 
@@ -172,7 +172,7 @@ def test_round_trip_export_make_eventreplica_run(tiny_sequence, tmp_path, capsys
     out = tmp_path / "seq"
     code = main(["make-eventreplica", "--layout", "tum-rgbd", "--input", str(export),
                  "--out", str(out), "--width", str(src.width), "--height", str(src.height),
-                 "--upsample", "4", "--no-progress"])
+                 "--upsample", "4", "--quiet"])
     assert code == 0, capsys.readouterr().err
     seq = Sequence.open(out)
     assert len(seq) == len(src) - 1  # frame 0 only starts the interpolation
@@ -236,7 +236,7 @@ def test_generic_layout_cli(tiny_sequence, tmp_path, capsys):
     args = [a for k, v in paths.items() for a in (k, str(v))]
     code = main(["make-eventreplica", "--layout", "generic", *args, "--out",
                  str(tmp_path / "seq"), "--width", "48", "--height", "32", "--upsample", "2",
-                 "--no-progress"])
+                 "--quiet"])
     assert code == 0, capsys.readouterr().err
     seq = Sequence.open(tmp_path / "seq")
     assert len(seq) == len(src) - 1 and (seq.width, seq.height) == (48, 32)
@@ -324,7 +324,7 @@ def test_bad_tum_input_is_one_line_naming_the_file(tum_export, tmp_path, capsys,
     extra, named, message = _break(tum_export, case)
     code = main(["make-eventreplica", "--layout", "tum-rgbd", "--input", str(tum_export),
                  "--out", str(tmp_path / "out"), "--width", "48", "--height", "32",
-                 "--no-progress", *extra])
+                 "--quiet", *extra])
     assert_cli_error(code, capsys.readouterr().err, 3, f"{named}: ", message)
     assert not (tmp_path / "out").exists()
 
@@ -350,7 +350,7 @@ def test_bad_generic_input_is_one_line_naming_the_file(tiny_sequence, tmp_path, 
             f.unlink()
     args = [a for k, v in paths.items() for a in (k, str(v))]
     code = main(["make-eventreplica", "--layout", "generic", *args, "--out",
-                 str(tmp_path / "out"), "--width", "48", "--height", "32", "--no-progress"])
+                 str(tmp_path / "out"), "--width", "48", "--height", "32", "--quiet"])
     assert_cli_error(code, capsys.readouterr().err, 3, f"{paths[named]}: ", message)
 
 
@@ -374,7 +374,7 @@ def test_bad_generic_input_is_one_line_naming_the_file(tiny_sequence, tmp_path, 
 ])
 def test_bad_layout_options_are_one_line(tmp_path, capsys, monkeypatch, args, message):
     monkeypatch.chdir(tmp_path)
-    code = main(["make-eventreplica", "--out", str(tmp_path / "out"), "--no-progress", *args])
+    code = main(["make-eventreplica", "--out", str(tmp_path / "out"), "--quiet", *args])
     assert_cli_error(code, capsys.readouterr().err, 2, message)
 
 
@@ -397,6 +397,6 @@ def test_output_may_not_replace_the_input_layout(tum_export, capsys, where):
     out = tum_export if where == "input" else tum_export / "rgb"
     code = main(["make-eventreplica", "--layout", "tum-rgbd", "--input", str(tum_export),
                  "--out", str(out), "--overwrite", "--width", "48", "--height", "32",
-                 "--no-progress"])
+                 "--quiet"])
     assert_cli_error(code, capsys.readouterr().err, 2, out)
     assert sorted(p.relative_to(tum_export) for p in tum_export.rglob("*")) == before

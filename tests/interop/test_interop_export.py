@@ -216,10 +216,10 @@ def test_output_safety(seq: Sequence, tmp_path: Path) -> None:
 def test_cli_export_and_errors(tiny_sequence: Path, tmp_path: Path, capsys) -> None:
     from egs_bench.cli import main
 
-    assert main(["export", str(tiny_sequence), str(tmp_path / "o"), "--format", "tum-rgbd",
+    assert main(["export", str(tiny_sequence), "-o", str(tmp_path / "o"), "--format", "tum-rgbd",
                  "--quiet"]) == 0
     assert (tmp_path / "o" / "monogs_rgbd.yaml").is_file()
-    code = main(["export", str(tiny_sequence), str(tmp_path / "o2"), "--format", "kitti"])
+    code = main(["export", str(tiny_sequence), "-o", str(tmp_path / "o2"), "--format", "kitti"])
     assert_cli_error(code, capsys.readouterr().err, 2, "--format", "kitti")
     assert not (tmp_path / "o2").exists()
 
@@ -265,6 +265,6 @@ def test_cli_export_of_a_truncated_frame(tiny_sequence: Path, tmp_path: Path, ca
     from egs_bench.cli import main
 
     src = _damaged_copy(tiny_sequence, tmp_path / "seq", "rgb", "truncated")
-    code = main(["export", str(src), str(tmp_path / "o"), "--format", "tum-rgbd", "--quiet"])
+    code = main(["export", str(src), "-o", str(tmp_path / "o"), "--format", "tum-rgbd", "--quiet"])
     assert_cli_error(code, capsys.readouterr().err, 3, src / "rgb" / "000002.png")
     assert not (tmp_path / "o").exists()
