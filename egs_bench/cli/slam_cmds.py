@@ -31,7 +31,8 @@ def run_cmd(
     max_frames: int | None = typer.Option(None, "--max-frames", min=1,
                                           help="Process only the first N frames (N >= 1)."),
     evaluate: bool = typer.Option(False, "--eval",
-                                  help="Evaluate the run afterwards (writes metrics.json)."),
+                                  help="Evaluate the run afterwards: writes metrics.json and "
+                                       "prints the table `eval` prints."),
     quiet: bool = QUIET,
     overwrite: bool = typer.Option(False, "--overwrite",
                                    help="Replace an existing run folder at --out (only one "

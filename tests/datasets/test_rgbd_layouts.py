@@ -4,6 +4,7 @@ tum-rgbd`` and a short run on the result, and one clear line for every bad input
 
 from __future__ import annotations
 
+import os
 import shutil
 from pathlib import Path
 
@@ -184,7 +185,7 @@ def test_round_trip_export_make_eventreplica_run(tiny_sequence, tmp_path, capsys
         np.testing.assert_allclose(seq.depth(i), src.depth(i + 1), atol=1.5 / 5000)
         assert np.abs(seq.sharp(i).astype(int) - src.rgb(i + 1).astype(int)).max() <= 1
     er = seq.meta["eventreplica"]
-    assert er["layout"] == "tum-rgbd" and er["cam_params"] == str(export / "egs_export.yaml")
+    assert er["layout"] == "tum-rgbd" and er["cam_params"] == "../export/egs_export.yaml"
     assert er["original_timestamps_s"] == pytest.approx(
         [float(t) for t in np.loadtxt(export / "rgb.txt", usecols=0)[1:]])
 
@@ -243,6 +244,11 @@ def test_generic_layout_cli(tiny_sequence, tmp_path, capsys):
     # 'auto' keeps the aspect ratio: one factor for both axes, the smallest that covers the
     # 48x32 crop (max(48 / 64, 32 / 48) = 0.75), so 64x48 becomes 48x36
     assert seq.meta["eventreplica"]["resize"] == [48, 36]
+    # meta.yaml travels with the sequence: its inputs relative to it, no path of this machine
+    assert str(tmp_path) not in (tmp_path / "seq" / "meta.yaml").read_text()
+    record = seq.meta["eventreplica"]["layout_record"]
+    assert record["trajectory"] == os.path.relpath(paths["--trajectory"], tmp_path / "seq")
+    assert seq.meta["eventreplica"]["input"].startswith("../in")
     assert seq.intrinsics.fx / seq.intrinsics.fy == pytest.approx(
         src.intrinsics.fx / src.intrinsics.fy)
     np.testing.assert_allclose(seq.poses, src.poses[1:], atol=2e-6)
@@ -400,3 +406,12 @@ def test_output_may_not_replace_the_input_layout(tum_export, capsys, where):
                  "--quiet"])
     assert_cli_error(code, capsys.readouterr().err, 2, out)
     assert sorted(p.relative_to(tum_export) for p in tum_export.rglob("*")) == before
+
+
+def test_shareable_paths_are_relative_to_the_output_or_only_a_name(tmp_path):
+    from egs_bench.outputs import shareable_path
+
+    out = tmp_path / "data" / "seq"
+    assert shareable_path(tmp_path / "data" / "replica" / "room0", out) == "../replica/room0"
+    assert shareable_path(out / "x.yaml", out) == "x.yaml"
+    assert shareable_path(tmp_path / "elsewhere" / "room0", out) == "room0"  # outside: name
