@@ -100,6 +100,7 @@ def output_path(out: Path | None, positional: Path | None, command: str) -> Path
         raise ConfigError(f"Missing option '-o' / '--out' (see egs-bench {command} --help)")
     return out
 
+
 #: the top-level help's panels, in the order shown, and the commands in each
 PANELS: dict[str, tuple[str, ...]] = {
     "Sequences": ("info", "show", "make-synthetic", "list-scenes", "make-eventreplica",
