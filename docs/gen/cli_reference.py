@@ -14,7 +14,7 @@ import typer
 from tabulate import tabulate
 from typer._click import Command, Context
 
-from egs_bench.cli.app import click_metavar, shown_opts
+from egs_bench.cli.app import PANELS, click_metavar, shown_opts
 
 PROG = "egs-bench"
 
@@ -95,6 +95,18 @@ def command_section(command: Command, ctx: Context) -> str:
     return "\n".join(parts)
 
 
+def panels_index(root: Command, prog: str) -> list[str]:
+    """The commands by the top-level help's panels (:data:`egs_bench.cli.app.PANELS`), each a
+    link to its section; empty for an application without those commands."""
+    names = set(getattr(root, "commands", {}))
+    lines = []
+    for panel, commands in PANELS.items():
+        links = [f"[`{name}`](#{prog}-{name})" for name in commands if name in names]
+        if links:
+            lines.append(f"- **{panel}**: {', '.join(links)}")
+    return [*lines, ""] if lines else []
+
+
 def render(app: typer.Typer, prog: str = PROG) -> str:
     """The whole page (Markdown) for the typer application ``app``."""
     root = typer.main.get_command(app)
@@ -107,6 +119,7 @@ def render(app: typer.Typer, prog: str = PROG) -> str:
         "command's help text and every argument and option with its type, default and "
         f"help, as `{prog} COMMAND --help` prints them.",
         "",
+        *panels_index(root, prog),
     ]
     return "\n".join(intro + sections)
 

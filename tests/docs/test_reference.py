@@ -202,3 +202,13 @@ def test_layout_reads_continuation_lines(gen) -> None:
     formats = gen("formats_reference")
     doc = "Title.\n\n    <run>/a.txt   first\n                  more\n    <run>/b/      two\n\nEnd."
     assert formats.layout(doc) == [("a.txt", "first more"), ("b/", "two")]
+
+
+def test_cli_page_lists_the_commands_by_the_help_s_panels(gen) -> None:
+    from egs_bench.cli.app import PANELS
+
+    cli = gen("cli_reference")
+    page = cli.render(cli.egs_bench_app())
+    for panel, names in PANELS.items():
+        line = next(li for li in page.splitlines() if li.startswith(f"- **{panel}**: "))
+        assert [f"[`{n}`](#egs-bench-{n})" for n in names] == line.split(": ", 1)[1].split(", ")
