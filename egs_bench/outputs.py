@@ -48,6 +48,18 @@ def _resolve(path: Path) -> Path:
     return Path(os.path.abspath(path)).resolve()
 
 
+def shareable_path(path: str | Path, out: str | Path) -> str:
+    """``path`` as an output meant to be sent on (a sequence's ``meta.yaml``) records it:
+    relative to the output folder ``out`` when it lies below ``out``'s parent
+    (``../replica/room0``), else by its name alone; never this machine's absolute path."""
+    p, base = _resolve(Path(path)), _resolve(Path(out))
+    try:
+        p.relative_to(base.parent)
+    except ValueError:
+        return p.name
+    return os.path.relpath(p, base)
+
+
 def _protected(out: Path) -> str | None:
     """Why ``out`` may never be replaced, or None."""
     cwd = _resolve(Path.cwd())

@@ -77,6 +77,27 @@ def cached_kernels() -> dict[str, Any]:
     return kernels
 
 
+def uncached_kernels(prefix: str = "egs_bench") -> list[str]:
+    """The kernels of :func:`cached_kernels` under the module ``prefix`` that numba's cache
+    holds no machine code for (for the current source): their first call compiles, which takes
+    seconds to minutes.
+
+    Reads numba's cache index (a private numba API, pinned in constraints.txt); when that
+    fails, the kernel counts as uncached, so a caller's "compiling…" line errs on saying it.
+    """
+    missing = []
+    for name, kernel in cached_kernels().items():
+        if not name.startswith(prefix):
+            continue
+        try:
+            cached = bool(kernel._cache._cache_file._load_index())  # {} on a stale source stamp
+        except Exception:  # numba moved its internals: assume the worst
+            cached = False
+        if not cached:
+            missing.append(name)
+    return missing
+
+
 def warm_up(say: Callable[[str], None] = print) -> WarmupReport:
     """Compile (or load from the cache) every cached kernel with the argument types the demo,
     the sequence generators and the CPU rasteriser use.

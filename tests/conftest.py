@@ -8,11 +8,13 @@ from pathlib import Path
 
 import pytest
 
+from egs_bench.caches import numba_cache_dir
 from tests.helpers.plane_scene import make_plane_sequence
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 SHARED = Path(os.environ.get("EGS_BENCH_SHARED", REPO_ROOT.parent / "shared"))
-os.environ.setdefault("NUMBA_CACHE_DIR", str(REPO_ROOT / ".cache" / "numba"))
+# the kernel cache `make setup`'s warm-up filled (the CLI's rule, egs_bench/caches.py)
+os.environ["NUMBA_CACHE_DIR"] = str(numba_cache_dir())
 os.environ.setdefault("MPLBACKEND", "Agg")
 # torch's and numba's OpenMP pools otherwise spin-wait and steal each other's 2 cores
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")

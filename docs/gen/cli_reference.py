@@ -7,13 +7,14 @@ line and a table of its arguments and options (type, default, help).
 
 from __future__ import annotations
 
-import re
 from collections.abc import Iterator
 from typing import Any
 
 import typer
 from tabulate import tabulate
 from typer._click import Command, Context
+
+from egs_bench.cli.app import PANELS, click_metavar, shown_opts
 
 PROG = "egs-bench"
 
@@ -34,17 +35,16 @@ def _cell(text: str) -> str:
 
 
 def _flags(param: Any) -> str:
-    return ", ".join(f"`{opt}`" for opt in [*param.opts, *param.secondary_opts])
+    """The option's names as ``--help`` shows them (deprecated spellings left out)."""
+    return ", ".join(f"`{opt}`" for opt in [*shown_opts(param), *param.secondary_opts])
 
 
 def _type(param: Any, ctx: Context) -> str:
-    """The value's type as ``--help`` shows it (``<auto|paper|cpu>``, ``<int range>``), with
-    the range; empty for a flag."""
+    """The value's name as ``--help`` shows it (``[auto|paper|cpu]``, ``INTEGER RANGE``), with
+    the range; ``flag`` for a flag."""
     if param.param_type_name == "option" and param.is_flag:
         return "flag"
-    record = param.get_help_record(ctx)
-    match = re.search(r"<([^>]*)>", record[0]) if record else None  # "-s, --seq <str>"
-    metavar = match.group(1) if match else (record[0].rsplit(" ", 1)[-1] if record else "")
+    metavar = param.metavar or click_metavar(param, ctx)
     bounds = []
     if getattr(param, "min", None) is not None:
         bounds.append(f">= {param.min}")
@@ -52,7 +52,7 @@ def _type(param: Any, ctx: Context) -> str:
         bounds.append(f"<= {param.max}")
     text = metavar
     if bounds:
-        text = text.replace(" range", "") + ", " + ", ".join(bounds)
+        text = text.replace(" RANGE", "") + ", " + ", ".join(bounds)
     return f"`{text}`" + (", repeatable" if param.multiple else "")
 
 
@@ -95,6 +95,18 @@ def command_section(command: Command, ctx: Context) -> str:
     return "\n".join(parts)
 
 
+def panels_index(root: Command, prog: str) -> list[str]:
+    """The commands by the top-level help's panels (:data:`egs_bench.cli.app.PANELS`), each a
+    link to its section; empty for an application without those commands."""
+    names = set(getattr(root, "commands", {}))
+    lines = []
+    for panel, commands in PANELS.items():
+        links = [f"[`{name}`](#{prog}-{name})" for name in commands if name in names]
+        if links:
+            lines.append(f"- **{panel}**: {', '.join(links)}")
+    return [*lines, ""] if lines else []
+
+
 def render(app: typer.Typer, prog: str = PROG) -> str:
     """The whole page (Markdown) for the typer application ``app``."""
     root = typer.main.get_command(app)
@@ -107,6 +119,7 @@ def render(app: typer.Typer, prog: str = PROG) -> str:
         "command's help text and every argument and option with its type, default and "
         f"help, as `{prog} COMMAND --help` prints them.",
         "",
+        *panels_index(root, prog),
     ]
     return "\n".join(intro + sections)
 

@@ -17,6 +17,7 @@ import results_page
 from mkdocs.structure.files import File, Files
 
 NOTES = Path(__file__).resolve().parents[1] / "notes"
+CHANGELOG = Path(__file__).resolve().parents[2] / "CHANGELOG.md"
 
 #: site path -> the function that renders its Markdown
 PAGES: dict[str, Callable[[], str]] = {
@@ -24,6 +25,8 @@ PAGES: dict[str, Callable[[], str]] = {
     "reference/config.md": config_reference.render,
     "reference/formats.md": formats_reference.render,
     "results.md": lambda: results_page.render(NOTES),
+    # the repository's CHANGELOG.md, as it is (one file, shown on the site too)
+    "changelog.md": lambda: CHANGELOG.read_text(encoding="utf-8"),
 }
 
 
@@ -35,9 +38,10 @@ def on_files(files: Files, config: Any) -> Files:
 
 
 def on_config(config: Any) -> Any:
-    """Fill the nav's empty ``Notes`` section with every note (``docs/notes/*.md``), by name."""
+    """Fill the nav's empty ``Records`` section with every note (``docs/notes/*.md``), by
+    name."""
     notes = [f"notes/{path.name}" for path in sorted(NOTES.glob("*.md"))]
     for item in config["nav"]:
-        if isinstance(item, dict) and item.get("Notes") == []:
-            item["Notes"] = notes
+        if isinstance(item, dict) and item.get("Records") == []:
+            item["Records"] = notes
     return config

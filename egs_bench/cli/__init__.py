@@ -9,11 +9,13 @@ import importlib
 import os
 import sys
 
+from egs_bench.caches import check_numba_cache_dir, numba_cache_dir
+
 # Before torch/numba load: their OpenMP pools otherwise spin-wait and steal each other's cores
-# (measured 4x slower rendering on 2 cores), and compiled numba kernels are cached.
+# (measured 4x slower rendering on 2 cores), and compiled numba kernels are cached where
+# `make setup`'s warm-up put them (egs_bench/caches.py).
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
-os.environ.setdefault("NUMBA_CACHE_DIR",
-                      os.path.join(os.path.expanduser("~"), ".cache", "egs_bench", "numba"))
+os.environ["NUMBA_CACHE_DIR"] = str(numba_cache_dir())
 
 from rich.console import Console
 from rich.text import Text
@@ -58,6 +60,7 @@ def main(argv: list[str] | None = None) -> int:
     """
     _register_commands()
     try:
+        check_numba_cache_dir()
         with signals_interrupt():
             app(args=argv, prog_name="egs-bench", standalone_mode=True)
     except SystemExit as exc:

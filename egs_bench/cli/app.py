@@ -7,13 +7,14 @@ import math
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
-from typing import Any
+from pathlib import Path
+from typing import Any, cast
 
 import typer
 from rich.console import Console
 from typer._click import Context
 from typer._click.exceptions import BadParameter, NoArgsIsHelpError, UsageError
-from typer.core import TyperGroup
+from typer.core import TyperArgument, TyperGroup, TyperOption
 
 from egs_bench import installed_version
 from egs_bench.errors import ConfigError
@@ -65,17 +66,171 @@ def _refusing_non_finite(callback: Callable[..., Any] | None) -> Callable[..., A
     return check
 
 
+# ------------------------------------------------------------------ the CLI's one convention
+# (docs/design.md §10): every output is -o/--out, progress is switched off with --quiet,
+# values are shown as click shows them, and the top-level help lists commands by panel.
+
+#: old spellings that still work for one version, hidden from the help; using one prints a
+#: deprecation line naming the new spelling
+DEPRECATED_OPTIONS = {"--output": "-o/--out", "--no-progress": "--quiet"}
+
+#: the one progress switch of every command that shows progress (``--no-progress``: the old
+#: spelling of some commands)
+QUIET = typer.Option(False, "--quiet", "--no-progress", help="No progress display.")
+
+#: the help of a -o/--out option that a deprecated positional argument may still stand for
+OUT_REQUIRED = "(required)"
+
+
+def output_path(out: Path | None, positional: Path | None, command: str) -> Path:
+    """The output path of a command whose output was once a positional argument: ``-o/--out``,
+    else the positional one (with a deprecation line).
+
+    Raises:
+        ConfigError: neither is given, or both are.
+    """
+    if out is not None and positional is not None:
+        raise ConfigError(f"the output is given twice ({positional} and -o {out}); give it "
+                          f"once, as -o/--out (see egs-bench {command} --help)")
+    if positional is not None:
+        err.print(f"warning: the output as a positional argument is deprecated and will be "
+                  f"removed in the next version; use -o/--out {positional}")
+        return positional
+    if out is None:
+        raise ConfigError(f"Missing option '-o' / '--out' (see egs-bench {command} --help)")
+    return out
+
+
+#: the top-level help's panels, in the order shown, and the commands in each
+PANELS: dict[str, tuple[str, ...]] = {
+    "Sequences": ("info", "show", "make-synthetic", "list-scenes", "make-eventreplica",
+                  "import-recording", "make-calib", "recording-presets", "import-enslam",
+                  "export"),
+    "SLAM runs": ("run", "list", "list-methods", "demo", "import-run"),
+    "Evaluation and reports": ("eval", "ate", "rpe", "compare-images", "leaderboard", "plot",
+                               "report", "figure", "paper-tables"),
+    "Experiments": ("sweep", "regress"),
+    "Gaussian maps": ("render-map", "export-map", "render-demo"),
+    "Setup": ("warm-up",),
+}
+
+_CLICK_TYPE_NAMES = {"str": "TEXT", "int": "INTEGER", "float": "FLOAT", "bool": "BOOLEAN",
+                     "path": "PATH", "Path": "PATH", "datetime": "DATETIME"}
+
+
+def click_metavar(param: Any, ctx: Context) -> str:
+    """The value's name as click shows it: ``TEXT``, ``PATH``, ``INTEGER RANGE``, ``[a|b|c]``
+    (typer would show ``<str>``, ``<path>``, ``<int range>``, ``<a|b|c>``, ``<list[Path]>``)."""
+    label = TyperOption.display_type(param, ctx).removeprefix("<").removesuffix(">")
+    if label.startswith("list[") and label.endswith("]"):  # repeatable: the element's name
+        label = label[len("list["):-1]
+    if "|" in label:
+        return f"[{label}]"
+    if label.endswith(" range"):
+        base = label.removesuffix(" range")
+        return f"{_CLICK_TYPE_NAMES.get(base, base.upper())} RANGE"
+    return _CLICK_TYPE_NAMES.get(label, label.upper())
+
+
+def shown_opts(param: Any) -> list[str]:
+    """An option's names as the help shows them: without the deprecated spellings."""
+    return [o for o in param.opts if o not in DEPRECATED_OPTIONS]
+
+
+class _ClickStyleOption(TyperOption):
+    """An option shown as ``-o, --out PATH``, deprecated spellings left out."""
+
+    def display_type_rich(self, ctx: Context) -> str | None:
+        return self.metavar if self.metavar is not None else click_metavar(self, ctx)
+
+    def get_help_record(self, ctx: Context) -> tuple[str, str] | None:
+        all_opts = self.opts
+        self.opts = shown_opts(self) or all_opts
+        try:
+            return super().get_help_record(ctx)
+        finally:
+            self.opts = all_opts
+
+
+class _ClickStyleArgument(TyperArgument):
+    """An argument shown by its name in capitals (``SOURCE``, ``RUN_DIRS...``), as click
+    shows it, and left out of the usage line when hidden."""
+
+    def display_type_rich(self, ctx: Context) -> str | None:
+        return None
+
+    @property
+    def display_name_raw(self) -> str:
+        return self.metavar if self.metavar is not None else (self.name or "").upper()
+
+    def _usage_display_name(self) -> str:
+        name = self.display_name_raw + ("..." if self.nargs != 1 else "")
+        return name if self.required else f"[{name}]"
+
+    def get_usage_pieces(self, ctx: Context) -> list[str]:
+        return [] if self.hidden else [self._usage_display_name()]
+
+
+def _deprecation_lines(command: Any, args: list[str]) -> list[str]:
+    """A line for each deprecated option name of ``command`` found in ``args``."""
+    names = {o for p in command.params for o in getattr(p, "opts", ())}
+    lines = []
+    for arg in args:
+        if arg == "--":
+            break
+        name = arg.split("=", 1)[0]
+        if name in DEPRECATED_OPTIONS and name in names:
+            lines.append(f"warning: {name} is deprecated and will be removed in the next "
+                         f"version; use {DEPRECATED_OPTIONS[name]}")
+    return lines
+
+
 class EgsBenchGroup(TyperGroup):
     """The command group: usage errors become one-line :class:`ConfigError`\\ s (typer would
-    print a usage block and a framed panel), and no number option of any command accepts NaN
-    or an infinity (float parsing takes "nan" and "inf", and no range check refuses NaN)."""
+    print a usage block and a framed panel), no number option of any command accepts NaN
+    or an infinity (float parsing takes "nan" and "inf", and no range check refuses NaN), and
+    the help follows the one convention above (click-style value names, panels, deprecated
+    spellings hidden and announced)."""
 
     def __init__(self, **attrs: Any) -> None:
         super().__init__(**attrs)
-        for command in self.commands.values():
+        panel_of = {name: panel for panel, names in PANELS.items() for name in names}
+        for name, command in self.commands.items():
+            if not isinstance(getattr(command, "rich_help_panel", None), str):  # typer: a Default
+                cast(Any, command).rich_help_panel = panel_of.get(name)
             for param in command.params:
                 if getattr(getattr(param, "type_descriptor", None), "annotation", None) is float:
                     param.callback = _refusing_non_finite(param.callback)
+                if type(param) is TyperOption:
+                    param.__class__ = _ClickStyleOption
+                elif type(param) is TyperArgument:
+                    param.__class__ = _ClickStyleArgument
+
+    def format_commands(self, ctx: Context, formatter: Any) -> None:
+        """The commands under their panel's heading (:data:`PANELS`), a panel at a time."""
+        commands = [(name, cmd) for name in self.list_commands(ctx)
+                    if (cmd := self.get_command(ctx, name)) is not None and not cmd.hidden]
+        if not commands:
+            return
+        limit = formatter.width - 6 - max(len(name) for name, _ in commands)
+
+        def panel(cmd: Any) -> str | None:
+            name = getattr(cmd, "rich_help_panel", None)
+            return name if name in PANELS else None
+
+        for heading in [*PANELS, None]:
+            rows = [(name, cmd.get_short_help_str(limit)) for name, cmd in commands
+                    if panel(cmd) == heading]
+            if rows:
+                with formatter.section(heading or "Other commands"):
+                    formatter.write_dl(rows)
+
+    def resolve_command(self, ctx: Context, args: list[str]) -> Any:
+        name, command, rest = super().resolve_command(ctx, args)
+        if command is not None and not ctx.resilient_parsing:
+            for line in _deprecation_lines(command, rest):
+                err.print(line)
+        return name, command, rest
 
     def make_context(self, info_name: str | None, args: list[str],
                      parent: Context | None = None, **extra: Any) -> Context:
@@ -121,6 +276,11 @@ def _global(
 ) -> None:
     """Event + RGB-D Gaussian Splatting SLAM toolkit: make data, run methods, score them."""
     OPTIONS.debug = debug
+
+
+def counted(n: int, noun: str) -> str:
+    """``"1 run"``, ``"3 runs"``: a count and its noun in the number it needs."""
+    return f"{n} {noun}" if n == 1 else f"{n} {noun}s"
 
 
 def comma_list(text: str, option: str) -> list[str]:

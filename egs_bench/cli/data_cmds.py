@@ -7,7 +7,7 @@ from pathlib import Path
 import typer
 from rich.table import Table
 
-from egs_bench.cli.app import SEED_MAX, app
+from egs_bench.cli.app import QUIET, SEED_MAX, app
 from egs_bench.cli.app import out as _out
 from egs_bench.cli.choices import SlamPreset
 
@@ -68,8 +68,10 @@ def demo(
     preset: SlamPreset = typer.Option("cpu", "--preset", help="SLAM configuration preset."),
     seed: int = typer.Option(0, "--seed", min=0, max=SEED_MAX,
                              help="Seed of the SLAM runs (the sequence stays the same)."),
+    quiet: bool = QUIET,
 ) -> None:
     """End-to-end demo: blurred synthetic sequence -> egs and monogs -> metrics -> leaderboard."""
     from egs_bench.demo import run_demo
 
-    run_demo(out, sequence=sequence, preset=preset, seed=seed, say=_out.print)
+    run_demo(out, sequence=sequence, preset=preset, seed=seed, say=_out.print,
+             progress=not quiet)

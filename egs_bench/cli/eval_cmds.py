@@ -12,7 +12,7 @@ import typer
 from rich.table import Table
 from typer.core import TyperCommand
 
-from egs_bench.cli.app import app, comma_list
+from egs_bench.cli.app import OUT_REQUIRED, QUIET, app, comma_list, counted, output_path
 from egs_bench.cli.app import out as _out
 from egs_bench.cli.choices import (
     Alignment,
@@ -38,29 +38,39 @@ def eval_cmd(
     run_dir: Path = typer.Argument(..., help="Run folder to evaluate (see docs: run folder)."),
     protocol: Protocol = typer.Option(DEFAULT_PROTOCOL, "--protocol", "-p",
                                       help="Evaluation protocol: egs (default) or monogs."),
+    quiet: bool = QUIET,
 ) -> None:
     """Score a run (ATE, PSNR, SSIM, LPIPS, FPS) and write RUN_DIR/metrics.json."""
     from egs_bench.eval.evaluate import evaluate_run
 
-    m = evaluate_run(run_dir, protocol, write=True, progress=True)
+    print_metrics(evaluate_run(run_dir, protocol, write=True, progress=not quiet),
+                  Path(run_dir) / "metrics.json")
+
+
+def print_metrics(m: dict, path: Path) -> None:
+    """The table of a run's scores (``metrics.json``'s content ``m``, written to ``path``), its
+    RPE lines and notes: what ``eval`` and ``run --eval`` print."""
     table = Table(title=f"{m['run']['method']} on {m['run']['sequence']} "
                         f"(protocol {m['protocol']['name']})")
-    for col in ("ATE RMSE (cm)", "PSNR (dB)", "SSIM", "LPIPS", "frames", "FPS"):
+    # ATE and the image metrics are taken over different frames (renders every Nth frame)
+    for col in ("ATE RMSE (cm)", "ATE poses", "PSNR (dB)", "SSIM", "LPIPS", "renders scored",
+                "FPS"):
         table.add_column(col, justify="right")
     ate, rnd, spd = m["ate"], m["rendering"] or {}, m["speed"] or {}
-    table.add_row(_fmt(100 * ate["rmse_m"], 2), _fmt(rnd.get("psnr_db"), 2),
-                  _fmt(rnd.get("ssim"), 3), _fmt(rnd.get("lpips"), 3),
-                  str(rnd.get("n_frames", "--")), _fmt(spd.get("fps"), 2))
+    table.add_row(_fmt(100 * ate["rmse_m"], 2), str(ate.get("n_matched", "--")),
+                  _fmt(rnd.get("psnr_db"), 2), _fmt(rnd.get("ssim"), 3),
+                  _fmt(rnd.get("lpips"), 3), str(rnd.get("n_frames", "--")),
+                  _fmt(spd.get("fps"), 2))
     _out.print(table)
     for key, label in (("per_frame", "per frame"), ("per_metre", "per metre")):
         rpe = (m.get("rpe") or {}).get(key) or {}
         if rpe.get("translation"):
             _out.print(f"RPE {label}: {100 * rpe['translation']['rmse']:.3f} cm, "
                        f"{rpe['rotation']['rmse']:.3f} deg (RMSE over "
-                       f"{rpe['translation']['n_pairs']} pairs)")
+                       f"{counted(rpe['translation']['n_pairs'], 'pair')})")
     for note in m["notes"]:
         _out.print(f"note: {note}")
-    _out.print(f"wrote {Path(run_dir) / 'metrics.json'}")
+    _out.print(f"wrote {path}")
 
 
 def _roles(first: Path, second: Path, est_first: bool, command: str) -> tuple[Path, Path]:
@@ -275,10 +285,10 @@ def leaderboard_cmd(
                                 help="Comma-separated metrics: ate, psnr, ssim, lpips, fps."),
     no_eval: bool = typer.Option(False, "--no-eval",
                                  help="Do not evaluate runs that lack metrics.json."),
-    output: Path | None = typer.Option(None, "--output", "-o",
+    output: Path | None = typer.Option(None, "--out", "-o", "--output",
                                        help="Write the table to this file instead of stdout."),
     overwrite: bool = typer.Option(False, "--overwrite",
-                                   help="Replace an existing text file at --output."),
+                                   help="Replace an existing text file at --out."),
     caption: str | None = typer.Option(None, "--caption", help="LaTeX caption."),
     label: str | None = typer.Option(None, "--label",
                                      help="LaTeX label (default tab:<RUNS_ROOT name>)."),
@@ -294,7 +304,7 @@ def leaderboard_cmd(
 
     if output is not None:
         prepare_output(output, "text", overwrite=overwrite, inputs=[runs_root],
-                       option="--output")
+                       option="--out")
     text = leaderboard(runs_root, fmt=fmt, by=by, protocol=protocol,
                        metrics=comma_list(metrics, "--metrics"),
                        evaluate_missing=not no_eval, caption=caption, label=label,
@@ -333,7 +343,9 @@ def plot_cmd(
 def import_run_cmd(
     source: Path = typer.Argument(..., help="External output: a TUM file, or the file / folder "
                                             "the system wrote (see --from)."),
-    out_dir: Path = typer.Argument(..., help="Run folder to create."),
+    old_out: Path | None = typer.Argument(None, hidden=True),  # deprecated: the output positional
+    out: Path | None = typer.Option(None, "--out", "-o",
+                                    help=f"Run folder to create {OUT_REQUIRED}."),
     fmt: ImportFormat = typer.Option("tum", "--from",
                             help="What SOURCE is: tum, orbslam2 (CameraTrajectory.txt / "
                                  "KeyFrameTrajectory.txt or their folder), photoslam (output "
@@ -367,6 +379,7 @@ def import_run_cmd(
     from egs_bench.baselines.import_runs import import_external_run, import_tum_run
     from egs_bench.errors import ConfigError
 
+    out_dir = output_path(out, old_out, "import-run")
     if fmt == "tum":
         if not method or not sequence:
             raise ConfigError("--from tum needs --method and --sequence")

@@ -7,7 +7,7 @@ from typing import Any, Literal
 
 import typer
 
-from egs_bench.cli.app import SEED_MAX, app
+from egs_bench.cli.app import QUIET, SEED_MAX, app
 from egs_bench.cli.app import out as _out
 from egs_bench.cli.choices import Interpolator
 
@@ -111,7 +111,7 @@ def make_eventreplica_cmd(
     seed: int = typer.Option(0, "--seed", min=0, max=SEED_MAX,
                              help="Seed for event noise/threshold mismatch."),
     overwrite: bool = typer.Option(False, "--overwrite", help="Replace existing outputs."),
-    progress: bool = typer.Option(True, "--progress/--no-progress", help="Show progress bars."),
+    quiet: bool = QUIET,
 ) -> None:
     """Make EventReplica-style sequences from RGB-D + pose data (Replica, TUM RGB-D or generic
     layout): resize + crop, temporal upsampling, events, blur."""
@@ -145,7 +145,7 @@ def make_eventreplica_cmd(
         interpolator=interpolator, width=width, height=height, resize=_parse_size(resize),
         first=first, max_frames=max_frames,
         sim=EventSimConfig(pos_threshold=threshold, neg_threshold=threshold, eps=eps, seed=seed),
-        response=LdrResponse(gain=gain), progress=progress, overwrite=overwrite,
+        response=LdrResponse(gain=gain), progress=not quiet, overwrite=overwrite,
     )
     if layout != "replica":
         outputs = [make_eventreplica(spec, out, **kwargs)]

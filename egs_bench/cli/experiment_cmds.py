@@ -83,7 +83,7 @@ def regress_cmd(
     update: bool = typer.Option(False, "--update",
                                 help="Write the summary of RUNS to BASELINE instead of "
                                      "checking (refreshes a committed baseline)."),
-    output: Path | None = typer.Option(None, "--output", "-o",
+    output: Path | None = typer.Option(None, "--out", "-o", "--output",
                                        help="Also write the regression table as CSV."),
 ) -> None:
     """Compare runs with a baseline, metric by metric (direction-aware tolerances); exit 1 on a
@@ -94,7 +94,7 @@ def regress_cmd(
 
     if output is not None:  # the regression table is rewritten on every check
         prepare_output(output, "text", overwrite=True, inputs=[baseline, runs],
-                       option="--output")
+                       option="--out")
     if update:
         df = update_baseline(runs, baseline, protocol)
         _out.print(f"wrote {baseline} ({len(df)} rows from {runs})")
@@ -170,7 +170,8 @@ def figure_cmd(
                                          "qualitative (renders side by side, zoomed crops, "
                                          "PSNR)."),
     run_dirs: list[Path] = typer.Argument(..., help="Run folders of one sequence."),
-    output: Path = typer.Option(..., "--output", "-o", help="Figure file: .pdf, .svg or .png."),
+    output: Path = typer.Option(..., "--out", "-o", "--output",
+                                help="Figure file: .pdf, .svg or .png."),
     frames: str = typer.Option("0", "--frames", help="qualitative: comma-separated frames."),
     crop: list[str] = typer.Option([], "--crop",
                                    help="qualitative: zoom box x,y,w,h in pixels "
@@ -186,7 +187,7 @@ def figure_cmd(
     from egs_bench.eval.figures import qualitative_figure, trajectory_figure
     from egs_bench.outputs import prepare_output
 
-    prepare_output(output, "figure", overwrite=overwrite, inputs=run_dirs, option="--output")
+    prepare_output(output, "figure", overwrite=overwrite, inputs=run_dirs, option="--out")
     if label and len(label) != len(run_dirs):
         raise ConfigError(f"--label given {len(label)} times for {len(run_dirs)} run folders")
     if kind == "trajectories":

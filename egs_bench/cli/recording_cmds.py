@@ -9,7 +9,7 @@ from typing import Any
 import typer
 from rich.text import Text
 
-from egs_bench.cli.app import app
+from egs_bench.cli.app import QUIET, app
 from egs_bench.cli.app import out as _out
 from egs_bench.cli.choices import EnslamFrames, FrameStamp, TimesUnit
 
@@ -28,12 +28,13 @@ _MAX_FRAMES = typer.Option(None, "--max-frames", min=1, help="Import at most thi
 _NAME = typer.Option(None, "--name", help="Sequence name (default: folder name).")
 _OVERWRITE_SEQUENCE = typer.Option(False, "--overwrite",
                                    help="Replace an existing sequence folder.")
-_PROGRESS = typer.Option(True, "--progress/--no-progress", help="Show a progress bar.")
 
 
 @app.command("import-recording")
 def import_recording_cmd(
-    out: Path = typer.Option(..., "--out", "-o", help="Sequence folder to write (must not exist)."),
+    out: Path = typer.Option(..., "--out", "-o",
+                             help="Sequence folder to create (an existing one is replaced only "
+                                  "with --overwrite)."),
     events: Path = typer.Option(..., "--events", help="AEDAT4 file or ROS1 .bag with the events."),
     depth: Path = typer.Option(..., "--depth", help="ROS1 .bag with a depth topic, or a folder of "
                                                     "16-bit depth PNGs (with --depth-times)."),
@@ -81,7 +82,7 @@ def import_recording_cmd(
                                      help="STREAM=NAME for meta.yaml (events, frames, depth, "
                                           "groundtruth), e.g. depth='Azure Kinect'; repeatable."),
     overwrite: bool = _OVERWRITE_SEQUENCE,
-    progress: bool = _PROGRESS,
+    quiet: bool = QUIET,
 ) -> None:
     """Import a real event + RGB-D + mocap recording as a sequence folder (ATE-only scoring)."""
     from egs_bench.recordings import RecordingSpec, import_recording
@@ -96,7 +97,7 @@ def import_recording_cmd(
         max_gt_gap_us=int(round(max_gt_gap_ms * 1000)), first_frame=first_frame,
         max_frames=max_frames, name=name, preset=preset, sensors=parse_sensor_names(sensor),
     )  # fmt: skip
-    path = import_recording(spec, out, overwrite=overwrite, progress=progress)
+    path = import_recording(spec, out, overwrite=overwrite, progress=not quiet)
     _out.print(f"wrote {path}")
 
 
@@ -149,7 +150,9 @@ def recording_presets_cmd() -> None:
 def import_enslam_cmd(
     input_dir: Path = typer.Option(..., "--input", help="A DEV-Reals sequence folder (rgbd/, "
                                    "davis346/, pose/), as EN-SLAM's toolkit extracts it."),
-    out: Path = typer.Option(..., "--out", "-o", help="Sequence folder to write (must not exist)."),
+    out: Path = typer.Option(..., "--out", "-o",
+                             help="Sequence folder to create (an existing one is replaced only "
+                                  "with --overwrite)."),
     calib: Path = typer.Option(..., "--calib", help="calib.yaml: RealSense colour camera as "
                                "depth_camera (and frame_camera), depth_scale, extrinsics, "
                                "offsets; event_camera defaults to davis346/intrinsic."),
@@ -171,7 +174,7 @@ def import_enslam_cmd(
     sensor: list[str] = typer.Option([], "--sensor", help="STREAM=NAME for meta.yaml; "
                                      "repeatable."),
     overwrite: bool = _OVERWRITE_SEQUENCE,
-    progress: bool = _PROGRESS,
+    quiet: bool = QUIET,
 ) -> None:
     """Import an EN-SLAM DEV-Reals sequence (events + RGB-D + poses) as a sequence folder."""
     from egs_bench.recordings.enslam import import_enslam
@@ -182,5 +185,5 @@ def import_enslam_cmd(
         frames=frames, max_depth_dt_us=int(round(max_depth_dt_ms * 1000)),
         max_gt_gap_us=int(round(max_gt_gap_ms * 1000)), first_frame=first_frame,
         max_frames=max_frames, name=name, sensors=parse_sensor_names(sensor),
-        overwrite=overwrite, progress=progress)
+        overwrite=overwrite, progress=not quiet)
     _out.print(f"wrote {path}")

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import typer
 
-from egs_bench.cli.app import app, comma_list
+from egs_bench.cli.app import app, comma_list, counted
 from egs_bench.cli.app import out as _out
 
 
@@ -14,7 +14,7 @@ from egs_bench.cli.app import out as _out
 def report_cmd(
     source: Path = typer.Argument(..., help="A run folder, a folder of runs or a sweep's output "
                                             "folder."),
-    output: Path = typer.Option(..., "--output", "-o", help="Report folder to create."),
+    output: Path = typer.Option(..., "--out", "-o", "--output", help="Report folder to create."),
     protocols: str | None = typer.Option(None, "--protocol", "-p",
                                          help="Comma-separated protocols with a leaderboard "
                                               "(default: those the runs were evaluated under)."),
@@ -26,7 +26,7 @@ def report_cmd(
                                    help="Replace an existing report folder (never anything "
                                         "else)."),
 ) -> None:
-    """Self-contained HTML report (open OUTPUT/index.html, works offline): leaderboards,
+    """Self-contained HTML report (open OUT/index.html, works offline): leaderboards,
     flagged runs, provenance, per-sequence trajectories and image strips, per-run pages."""
     from egs_bench.errors import ConfigError
     from egs_bench.report import build_report
@@ -41,5 +41,6 @@ def report_cmd(
     result = build_report(source, output, overwrite=overwrite,
                           protocols=comma_list(protocols, "--protocol") if protocols else None,
                           evaluate_missing=not no_eval, frames=picked)
-    _out.print(f"wrote {result.index}: {result.runs} runs ({result.flagged} flagged), "
-               f"{result.sequences} sequences, {result.size_bytes / 1e6:.1f} MB")
+    _out.print(f"wrote {result.index}: {counted(result.runs, 'run')} ({result.flagged} "
+               f"flagged), {counted(result.sequences, 'sequence')}, "
+               f"{result.size_bytes / 1e6:.1f} MB")

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import typer
 
-from egs_bench.cli.app import SEED_MAX, app
+from egs_bench.cli.app import QUIET, SEED_MAX, app
 from egs_bench.cli.choices import ListWhat, SlamPreset
 
 
@@ -31,8 +31,9 @@ def run_cmd(
     max_frames: int | None = typer.Option(None, "--max-frames", min=1,
                                           help="Process only the first N frames (N >= 1)."),
     evaluate: bool = typer.Option(False, "--eval",
-                                  help="Evaluate the run afterwards (writes metrics.json)."),
-    quiet: bool = typer.Option(False, "--quiet", help="No progress bar."),
+                                  help="Evaluate the run afterwards: writes metrics.json and "
+                                       "prints the table `eval` prints."),
+    quiet: bool = QUIET,
     overwrite: bool = typer.Option(False, "--overwrite",
                                    help="Replace an existing run folder at --out (only one "
                                         "written by egs-bench; other files in it are kept)."),
@@ -50,17 +51,17 @@ def run_cmd(
     m = with_options(get_method(method), parse_overrides(options))
     if overwrite and not supports_overwrite(m):
         raise ConfigError(f"method {m.name!r} does not support --overwrite; choose a new --out")
-    sequence = load_sequence(seq)
+    sequence = load_sequence(seq, progress=not quiet)
     out_dir = out or Path("runs") / m.name.replace(":", "_") / sequence.name
     extra: dict = {"overwrite": True} if overwrite else {}
     run = m.run(sequence, out_dir, preset=preset, device=device, seed=seed,
                 max_frames=max_frames, progress=not quiet, **extra)
     typer.echo(f"run folder: {run.path}")
     if evaluate:
+        from egs_bench.cli.eval_cmds import print_metrics
         from egs_bench.eval.evaluate import evaluate_run
 
-        evaluate_run(run.path)
-        typer.echo(f"metrics: {run.metrics_path}")
+        print_metrics(evaluate_run(run.path, progress=not quiet), run.metrics_path)
 
 
 def _echo_methods() -> None:

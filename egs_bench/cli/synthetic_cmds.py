@@ -7,7 +7,7 @@ from pathlib import Path
 import typer
 from rich.table import Table
 
-from egs_bench.cli.app import SEED_MAX, app
+from egs_bench.cli.app import QUIET, SEED_MAX, app
 from egs_bench.cli.app import out as _out
 
 
@@ -16,7 +16,9 @@ def make_synthetic_cmd(
     scene: str = typer.Option(
         ..., "--scene", "-s", help="Scene name (see `egs-bench list-scenes`)."
     ),
-    out: Path = typer.Option(..., "--out", "-o", help="Output sequence folder (must not exist)."),
+    out: Path = typer.Option(..., "--out", "-o",
+                             help="Sequence folder to create (an existing one is replaced only "
+                                  "with --overwrite)."),
     frames: int = typer.Option(100, "--frames", "-n", help="Number of frames."),
     width: int = typer.Option(448, "--width", help="Image width in pixels."),
     height: int = typer.Option(256, "--height", help="Image height in pixels."),
@@ -50,7 +52,7 @@ def make_synthetic_cmd(
         1.0, "--gain", help="Camera response gain before clipping (higher saturates more)."
     ),
     overwrite: bool = typer.Option(False, "--overwrite", help="Replace an existing --out."),
-    progress: bool = typer.Option(True, "--progress/--no-progress", help="Show a progress bar."),
+    quiet: bool = QUIET,
 ) -> None:
     """Generate a blurred RGB-D + events sequence of a built-in procedural scene."""
     from egs_bench.datasets.synthetic import make_synthetic
@@ -58,7 +60,7 @@ def make_synthetic_cmd(
     path = make_synthetic(
         scene, out, frames=frames, width=width, height=height, fps=fps, exposure_ms=exposure_ms,
         speed=speed, seed=seed, trajectory=trajectory, time_scale=time_scale,
-        supersample=supersample, gain=gain, progress=progress, overwrite=overwrite,
+        supersample=supersample, gain=gain, progress=not quiet, overwrite=overwrite,
     )  # fmt: skip
     _out.print(f"wrote {path}")
 

@@ -335,8 +335,9 @@ def _read_error(path: Path, file, exc: OSError) -> InputError:
             pass
     if missing:
         return InputError(path, f"needs the HDF5 compression filter {', '.join(sorted(missing))}, "
-                                "which this installation lacks (hdf5plugin provides "
-                                "Blosc, Blosc2, Zstd, LZ4, Bitshuffle and bzip2)")
+                                "which this installation lacks: pip install "
+                                "'egs-bench[hdf5]' (hdf5plugin: Blosc, Blosc2, Zstd, LZ4, "
+                                "Bitshuffle and bzip2)")
     return InputError(path, f"cannot read HDF5 data, truncated or corrupt ({exc})")
 
 

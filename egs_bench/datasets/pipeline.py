@@ -31,7 +31,6 @@ from pathlib import Path
 from typing import Any, Protocol
 
 import numpy as np
-from tqdm import tqdm
 
 import egs_bench
 from egs_bench.color import LdrResponse
@@ -42,6 +41,7 @@ from egs_bench.fileio import atomic_dir
 from egs_bench.geometry import Intrinsics, invert_pose
 from egs_bench.interrupts import raise_if_interrupted
 from egs_bench.outputs import prepare_output
+from egs_bench.progress import ProgressBar, say_compiling
 
 DEFAULT_DEPTH_SCALE = 5000.0  # uint16 PNG units per metre (TUM convention): 0.2 mm, <= 13.1 m
 
@@ -201,7 +201,9 @@ def generate_sequence(
 
     Args:
         source: the latent scene.
-        t_start_us, t_end_us: exposure windows, [N] int64, non-empty and non-overlapping.
+        t_start_us: exposure starts, [N] int64 microseconds.
+        t_end_us: exposure ends, [N] int64 microseconds; each window non-empty, none
+            overlapping the next.
         out: destination folder; written under a temporary name, then renamed.
         meta_extra: extra ``meta.yaml`` entries (name, source, scene description...).
         sim: event simulator settings (thresholds, eps, noise...).
@@ -242,13 +244,15 @@ def generate_sequence(
         assert events is not None  # t_offset_us given: the writer has an event file
         sampler = _Sampler(source, sampling, sim.eps)
         simulator = EventSimulator(sim, cam.height, cam.width)
+        if progress and _compiles(source):  # else a cold cache is a silent minute
+            say_compiling(f"generating {out.name}")
         prev = sampler.render(int(boundaries[0]))
         simulator.reset(prev[2], prev[0])
         dense_t, dense_pose = [prev[0]], [prev[1].pose]
         frame = 0
         acc = np.zeros((cam.height, cam.width, 3))
-        bar = tqdm(total=len(t_start), desc=f"generating {out.name}", unit="frame",
-                   disable=not progress)
+        bar = ProgressBar(len(t_start), f"generating {out.name}", unit="frame",
+                          enabled=progress)
         for t_b in boundaries[1:]:
             raise_if_interrupted()  # one whose exception was swallowed: stop within a frame
             for cur in sampler.between(prev, int(t_b)):
@@ -265,14 +269,25 @@ def generate_sequence(
                                      sharp=response.to_ldr(cur[1].rgb))
                     acc[:] = 0.0
                     frame += 1
-                    bar.update(1)
                     bar.set_postfix(samples=sampler.num_samples)
+                    bar.update(1)
         bar.close()
         meta_stats = {"num_samples": sampler.num_samples,
                       "max_flow_px_between_boundaries": round(sampler.max_flow_seen, 3)}
         writer.meta["sampling"].update(meta_stats)
         writer.finish(np.asarray(dense_t), np.stack(dense_pose))
     return out
+
+
+def _compiles(source: LatentSource) -> bool:
+    """Whether the first frame will compile numba kernels: the event simulator's, or those of
+    the source's own package (``egs_bench.datasets.synthetic``, ``...eventreplica``), are not
+    in numba's cache."""
+    from egs_bench.warmup import uncached_kernels
+
+    package = type(source).__module__.rsplit(".", 1)[0]
+    return bool(uncached_kernels("egs_bench.datasets.esim_kernels")
+                or (package != "egs_bench.datasets" and uncached_kernels(package)))
 
 
 def _base_meta(cam: Intrinsics, sim: EventSimConfig, response: LdrResponse,

@@ -387,7 +387,7 @@ def read_tum_rgbd(
             "largest_frame_gap_s": float(np.diff(stamps).max()),
         },
         "camera_source": f"TUM {tum_camera or _folder_camera(root)} calibration"
-                         if camera_file is None else str(camera_file),
+                         if camera_file is None else Path(camera_file),
     }
     scene = ReplicaScene(
         path=root, rgb_paths=rgb_paths, depth_paths=depth_paths,
@@ -438,8 +438,8 @@ def read_generic_rgbd(
         poses=traj.poses, intrinsics=_intrinsics(cam, rgb[0]),
         depth_scale=cam.depth_scale, cam_params_path=cam.path, distortion=cam.distortion,
         layout="generic", timestamps_s=traj.timestamps.copy(),
-        record={"depth_dir": str(depth_dir.resolve()), "trajectory": str(trajectory.resolve()),
-                "camera_source": str(cam.path)},
+        # paths, which the sequence's meta.yaml records relative to the output
+        record={"depth_dir": depth_dir, "trajectory": trajectory, "camera_source": cam.path},
     )
     if check_image_headers:
         check_headers(scene)

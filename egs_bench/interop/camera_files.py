@@ -25,6 +25,7 @@ The ORB parameters are those of ORB-SLAM2's ``TUM1.yaml``; ``Camera.bf`` / ``Ste
 from __future__ import annotations
 
 from dataclasses import replace
+from pathlib import Path
 
 import yaml
 
@@ -58,13 +59,25 @@ def _header(cam: Intrinsics, name: str) -> str:
     return _HEADER.format(name=name, w=cam.width, h=cam.height)
 
 
+#: where an external system's checkout finds an export (a folder relative to its checkout, as
+#: MonoGS' and NICE-SLAM's own configs name their datasets)
+CHECKOUT_ROOT = "datasets/egs_bench"
+
+
+def checkout_path(export_dir: str | Path) -> str:
+    """``datasets/egs_bench/<export folder name>``: the export as a system's config names it."""
+    return f"{CHECKOUT_ROOT}/{Path(export_dir).name}"
+
+
 def monogs_config(cam: Intrinsics, dataset_path: str, *, dataset_type: str, depth_scale: float,
                   name: str) -> str:
     """A MonoGS RGB-D config (``python slam.py --config FILE --eval`` from the MonoGS checkout).
 
     Args:
-        dataset_path: absolute path of the exported folder; a trailing ``/`` is added because
-            MonoGS names its result folder after the last two path components.
+        dataset_path: the exported folder as MonoGS finds it, relative to the MonoGS checkout
+            (:func:`checkout_path`; no path of this machine goes into a file meant to be sent
+            on); a trailing ``/`` is added because MonoGS names its result folder after the
+            last two path components.
         dataset_type: ``"tum"`` or ``"replica"`` (MonoGS' ``Dataset.type``).
         depth_scale: depth PNG units per metre.
     """
@@ -87,9 +100,10 @@ def monogs_config(cam: Intrinsics, dataset_path: str, *, dataset_type: str, dept
         "Results": {"use_gui": False},
     }
     comment = (_header(cam, name)
-               + "# MonoGS single-thread RGB-D mode (as the EGS-SLAM paper ran it). Run from the "
-                 "MonoGS checkout:\n#   WANDB_MODE=disabled python slam.py --config THIS_FILE "
-                 "--eval\n")
+               + "# MonoGS single-thread RGB-D mode (as the EGS-SLAM paper ran it). From the "
+                 "MonoGS checkout, link\n# this folder where dataset_path points, then run:\n"
+                 f"#   mkdir -p {CHECKOUT_ROOT} && ln -s THIS_FOLDER {dataset_path.rstrip('/')}\n"
+                 "#   WANDB_MODE=disabled python slam.py --config THIS_FILE --eval\n")
     return comment + yaml.safe_dump(config, sort_keys=False)
 
 
@@ -161,8 +175,9 @@ def rampvo_k_yaml(cam: Intrinsics, *, name: str) -> str:
 
 def nice_slam_config(cam: Intrinsics, input_folder: str, *, depth_scale: float,
                      bound: list[list[float]], name: str) -> str:
-    """A NICE-SLAM scene config (``python run.py THIS_FILE`` from the NICE-SLAM checkout);
-    ``bound`` [[xmin, xmax], [ymin, ymax], [zmin, zmax]] in metres encloses the scene."""
+    """A NICE-SLAM scene config (``python run.py THIS_FILE`` from the NICE-SLAM checkout, with
+    the export linked at ``input_folder``, relative to it: :func:`checkout_path`); ``bound``
+    [[xmin, xmax], [ymin, ymax], [zmin, zmax]] in metres encloses the scene."""
     config = {
         "inherit_from": "configs/Replica/replica.yaml",
         "mapping": {"bound": bound, "marching_cubes_bound": bound},

@@ -1,6 +1,6 @@
 """Export a canonical sequence in the layouts external SLAM systems read unchanged.
 
-Formats (``egs-bench export SEQ OUT --format F``):
+Formats (``egs-bench export SEQ -o OUT --format F``):
 
 ``tum-rgbd`` (MonoGS ``type: tum``, ORB-SLAM2 ``rgbd_tum``, Photo-SLAM ``tum_rgbd``)::
 
@@ -68,6 +68,7 @@ from egs_bench.fileio import atomic_dir, to_plain
 from egs_bench.geometry import write_tum
 from egs_bench.images import image_header, write_depth_png, write_ldr_image
 from egs_bench.interop.camera_files import (
+    checkout_path,
     monogs_config,
     nice_slam_config,
     opencv_camera,
@@ -214,15 +215,15 @@ def _manifest(tmp: Path, seq: Sequence, fmt: str, n: int, retimed: bool, files: 
     (tmp / MANIFEST).write_text(yaml.safe_dump(to_plain(data), sort_keys=False))
 
 
-def _export_tum(seq: Sequence, tmp: Path, n: int, t_export: np.ndarray, out_abs: Path,
+def _export_tum(seq: Sequence, tmp: Path, n: int, t_export: np.ndarray, in_checkout: str,
                 progress: bool) -> _Written:
-    from tqdm import tqdm
+    from egs_bench.progress import tracked
 
     (tmp / "rgb").mkdir()
     (tmp / "depth").mkdir()
     rgb_names, depth_names = [], []
     lost = 0
-    for i in tqdm(range(n), desc=f"export {seq.name} (tum-rgbd)", disable=not progress):
+    for i in tracked(range(n), f"export {seq.name} (tum-rgbd)", unit="frame", enabled=progress):
         name = f"{i:06d}.png"
         _copy_rgb(seq, i, tmp / "rgb" / name)
         lost += _depth_png(seq, i, tmp / "depth" / name, TUM_DEPTH_SCALE)
@@ -245,7 +246,7 @@ def _export_tum(seq: Sequence, tmp: Path, n: int, t_export: np.ndarray, out_abs:
         "photoslam": "photoslam_rgbd.yaml", "associations": "associations.txt",
     }
     (tmp / files["monogs"]).write_text(monogs_config(
-        cam, str(out_abs), dataset_type="tum", depth_scale=TUM_DEPTH_SCALE, name=seq.name))
+        cam, in_checkout, dataset_type="tum", depth_scale=TUM_DEPTH_SCALE, name=seq.name))
     (tmp / files["orbslam2"]).write_text(orbslam2_settings(
         cam, fps=fps, depth_scale=TUM_DEPTH_SCALE, name=seq.name))
     (tmp / files["photoslam"]).write_text(orbslam3_settings(
@@ -299,7 +300,7 @@ def _scene_bound(seq: Sequence, n: int, margin: float = 0.2) -> list[list[float]
             for a, b in zip(lo, hi, strict=True)]
 
 
-def _export_replica(seq: Sequence, tmp: Path, n: int, t_export: np.ndarray, out_abs: Path,
+def _export_replica(seq: Sequence, tmp: Path, n: int, t_export: np.ndarray, in_checkout: str,
                     jpeg_quality: int) -> _Written:
     from egs_bench.datasets.replica import REPLICA_DEPTH_SCALE, export_replica_layout
 
@@ -317,10 +318,10 @@ def _export_replica(seq: Sequence, tmp: Path, n: int, t_export: np.ndarray, out_
     files = {"monogs": "monogs_replica.yaml", "nice_slam": "nice_slam.yaml",
              "camera": "cam_params.json"}
     (tmp / files["monogs"]).write_text(monogs_config(
-        cam, str(out_abs), dataset_type="replica", depth_scale=REPLICA_DEPTH_SCALE,
+        cam, in_checkout, dataset_type="replica", depth_scale=REPLICA_DEPTH_SCALE,
         name=seq.name))
     (tmp / files["nice_slam"]).write_text(nice_slam_config(
-        cam, str(out_abs), depth_scale=REPLICA_DEPTH_SCALE, bound=_scene_bound(seq, n),
+        cam, in_checkout, depth_scale=REPLICA_DEPTH_SCALE, bound=_scene_bound(seq, n),
         name=seq.name))
     notes = [f"colour re-encoded as JPEG (quality {jpeg_quality}, 4:4:4 chroma): Replica "
              "loaders glob frame*.jpg only", "the layout has no time stamps: frames are in order, "
@@ -403,7 +404,8 @@ def export_sequence(sequence: str | Path | Sequence, out: str | Path, *, fmt: st
     out = Path(out)
     check_never_replaced(out, inputs=[seq.path])
     _check_out(out, overwrite)
-    out_abs = out.resolve()
+    # the configs name the export relative to the system's checkout, not by this machine's path
+    in_checkout = checkout_path(out.resolve())
     n = len(seq)
     # only MonoGS' TUM loader drops close frames; RampVO and the Replica layout keep the stamps
     t_export, retimed = export_times(seq.timestamps_s[:n], retime if fmt == "tum-rgbd" else
@@ -415,9 +417,9 @@ def export_sequence(sequence: str | Path | Sequence, out: str | Path, *, fmt: st
     with atomic_dir(out, replace=overwrite) as tmp:
         tmp.mkdir()
         if fmt == "tum-rgbd":
-            files, extra, more = _export_tum(seq, tmp, n, t_export, out_abs, progress)
+            files, extra, more = _export_tum(seq, tmp, n, t_export, in_checkout, progress)
         elif fmt == "replica":
-            files, extra, more = _export_replica(seq, tmp, n, t_export, out_abs, jpeg_quality)
+            files, extra, more = _export_replica(seq, tmp, n, t_export, in_checkout, jpeg_quality)
         else:
             files, extra, more = _export_eds(seq, tmp, n, t_export)
         notes += more

@@ -26,7 +26,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from tqdm import tqdm
 
 from egs_bench import __version__
 from egs_bench.datasets.events import Events
@@ -34,6 +33,7 @@ from egs_bench.errors import ConfigError, InputError
 from egs_bench.fileio import atomic_dir
 from egs_bench.geometry import interpolate_trajectory, invert_pose
 from egs_bench.outputs import prepare_output
+from egs_bench.progress import ProgressBar
 from egs_bench.recordings.calib import RecordingCalib, load_calib
 from egs_bench.recordings.camera import CameraModel
 from egs_bench.recordings.depth import reproject_depth, warp_to_depth_camera
@@ -532,8 +532,7 @@ def write_sequence(inp: _Inputs, spec: RecordingSpec, out: Path, *, overwrite: b
                              f"{span}): the clocks do not overlap")
         depths = _lockstep(inp.depth.load, plan.depth)
         images = _lockstep(inp.frames.load, plan.frames)
-        bar = tqdm(total=len(plan.frames), desc=f"import {name}", unit="frame",
-                   disable=not progress)
+        bar = ProgressBar(len(plan.frames), f"import {name}", unit="frame", enabled=progress)
         for k in range(len(plan.frames)):
             depth = reproject_depth(next(depths), depth_rays, calib.T_event_depth, pinhole)
             image = next(images)

@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 
 from egs_bench.datasets.events import Events
-from egs_bench.errors import InputError
+from egs_bench.errors import ConfigError, InputError
 from egs_bench.geometry import pose_from_tq
 from egs_bench.recordings.camera import CameraModel
 from egs_bench.recordings.streams import (
@@ -245,7 +245,11 @@ class _GuardedReader:
         self.reader: Any = None
 
     def __enter__(self) -> Any:
-        from rosbags.highlevel import AnyReader
+        try:
+            from rosbags.highlevel import AnyReader
+        except ImportError:
+            raise ConfigError("reading ROS1 bags needs the `rosbags` package: "
+                              "pip install 'egs-bench[ros]'") from None
 
         try:
             self.reader = AnyReader([self.path])

@@ -9,12 +9,12 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from tqdm import tqdm
 
 from egs_bench.datasets.sequence_view import SequenceView
 from egs_bench.errors import ConfigError, InputError
 from egs_bench.fileio import write_text_atomic
 from egs_bench.geometry import invert_pose
+from egs_bench.progress import ProgressBar
 from egs_bench.render.numba_backend import kernels_ready
 from egs_bench.runs.folder import RunFolder
 from egs_bench.slam.appearance import APPEARANCE_FILE, MAP_FILE, Appearance, ldr8, write_appearance
@@ -101,7 +101,7 @@ def run_slam(seq: SequenceView, out: str | Path, *, method_name: str, config: Sl
         run.log(f"{method_name} on {seq.name}: {n} frames, preset {preset}, seed {seed}")
         system = SlamSystem(seq, config, device=device, seed=seed, log=run.log,
                             components=components)
-        bar = tqdm(total=n, desc=f"{method_name} {seq.name}", unit="frame", disable=not progress)
+        bar = ProgressBar(n, f"{method_name} {seq.name}", unit="frame", enabled=progress)
         t_start = time.perf_counter()
         run.set_progress(0, n)
         gaussians_per_frame: list[int] = []  # the map's size after each frame (its mapping)
@@ -110,9 +110,9 @@ def run_slam(seq: SequenceView, out: str | Path, *, method_name: str, config: Sl
             elapsed = time.perf_counter() - t_start
             gaussians_per_frame.append(len(system.gmap))
             run.set_progress(rep.index + 1, n)
-            bar.update(1)
-            bar.set_postfix(loss=f"{rep.loss:.4f}", fps=f"{bar.n / max(elapsed, 1e-9):.2f}",
+            bar.set_postfix(loss=rep.loss, fps=round((rep.index + 1) / max(elapsed, 1e-9), 2),
                             gaussians=len(system.gmap))
+            bar.update(1)
 
         # Frame 0's map initialisation alone takes minutes on a CPU with the paper budget:
         # show how far it is and when it ends (or that kernels compile) rather than a frozen bar.

@@ -49,14 +49,14 @@ def _bad_path_cases(tmp: Path, make: bool = True) -> dict[str, tuple[list[str | 
         "compare-images": (["compare-images", missing, missing], missing),
         "leaderboard": (["leaderboard", missing], missing),
         "plot": (["plot", missing], missing),
-        "import-run": (["import-run", missing, out, "--from", "tum", "-m", "m", "-s", "s"],
+        "import-run": (["import-run", missing, "-o", out, "--from", "tum", "-m", "m", "-s", "s"],
                        out),
         "render-map": (["render-map", missing, "-o", out.with_suffix(".png")], missing),
         "export-map": (["export-map", missing, "-o", out.with_suffix(".ply")], missing),
         "render-demo": (["render-demo", "-o", folder], folder),
         "run": (["run", "-m", "monogs", "-s", missing], missing),
         "list": (["list", NASTY], NASTY),
-        "export": (["export", missing, out, "-f", "tum-rgbd"], missing),
+        "export": (["export", missing, "-o", out, "-f", "tum-rgbd"], missing),
         "import-recording": (["import-recording", "-o", out, "--events", missing, "--depth",
                               missing, "--gt", missing], missing),
         "import-enslam": (["import-enslam", "--input", missing, "-o", out, "--calib", missing,
@@ -147,7 +147,7 @@ def test_library_messages_keep_their_brackets(monkeypatch, capsys) -> None:
     (["compare-images", "a.png", "b.png", "--lpips-net", "foo"], "--lpips-net"),
     (["ate", "a", "b", "--align", "affine"], "--align"),
     (["list", "foo"], "'foo' is not one of 'methods', 'scenes'"),
-    (["list"], "Missing argument 'what'. Choose from: methods, scenes"),
+    (["list"], "Missing argument 'WHAT'. Choose from: methods, scenes"),
     (["run", "-m", "os:system", "-s", "x"], "os:system does not provide a method"),
     (["run", "-m", "monogs", "-s", "x", "--nosuch"], "--nosuch"),
     (["make-calib", "-o", "c.yaml", "--preset", "foo"], "--preset 'foo'"),
@@ -197,7 +197,7 @@ def test_make_calib_overwrite_replaces_only_with_the_flag(tmp_path, capsys) -> N
 # ------------------------------------------------------------------ item 12: consistency
 def test_help_lists_choices_and_shows_no_bool_type(capsys) -> None:
     code, out, _ = run_cli(capsys, "ate", "--help")
-    assert code == 0 and "<se3|sim3|none>" in out and "<bool>" not in out, out
+    assert code == 0 and "[se3|sim3|none]" in out and "<bool>" not in out, out
     code, out, _ = run_cli(capsys, "render-map", "--help")
     assert "[default: the run's camera, else 640]" in " ".join(out.split()), out
 
@@ -246,9 +246,9 @@ def test_cli_choices_match_the_library() -> None:
 def test_an_existing_export_is_a_usage_error_like_every_output(tiny_sequence, tmp_path,
                                                                capsys) -> None:
     out = tmp_path / "exp"
-    assert main(["export", str(tiny_sequence), str(out), "-f", "tum-rgbd", "--quiet"]) == 0
+    assert main(["export", str(tiny_sequence), "-o", str(out), "-f", "tum-rgbd", "--quiet"]) == 0
     capsys.readouterr()
-    code, _, err = run_cli(capsys, "export", tiny_sequence, out, "-f", "tum-rgbd", "--quiet")
+    code, _, err = run_cli(capsys, "export", tiny_sequence, "-o", out, "-f", "tum-rgbd", "--quiet")
     assert_cli_error(code, err, 2, f"{out}: already exists", "--overwrite")
 
 

@@ -126,7 +126,7 @@ def test_cli_several_scenes(replica_dir, tmp_path):
     code = main(["make-eventreplica", "--replica-root", str(root), "--scene", "sceneA",
                  "--scene", "sceneB", "--out", str(tmp_path / "out"), "--width", "112",
                  "--height", "64", "--resize", "none", "--max-frames", "3", "--upsample", "2",
-                 "--no-progress"])
+                 "--quiet"])
     assert code == 0
     for name in ("sceneA", "sceneB"):
         assert len(Sequence.open(tmp_path / "out" / name)) == 2
@@ -146,7 +146,7 @@ def test_cli_bad_options(replica_dir, tmp_path, capsys, args, message):
     root, _ = replica_dir
     code = main(["make-eventreplica", "--input", str(root / "sceneA"), "--out",
                  str(tmp_path / "bad"), "--resize", "none", "--width", "112", "--height", "64",
-                 "--no-progress", *args])
+                 "--quiet", *args])
     assert_cli_error(code, capsys.readouterr().err, 2, message)
     assert not (tmp_path / "bad").exists()
 

@@ -4,6 +4,7 @@ tum-rgbd`` and a short run on the result, and one clear line for every bad input
 
 from __future__ import annotations
 
+import os
 import shutil
 from pathlib import Path
 
@@ -160,7 +161,7 @@ def test_undistortion_moves_points_to_their_pinhole_projection(tmp_path):
 
 
 def _export_tum(tiny_sequence: Path, out: Path) -> Path:
-    assert main(["export", str(tiny_sequence), str(out), "--format", "tum-rgbd"]) == 0
+    assert main(["export", str(tiny_sequence), "-o", str(out), "--format", "tum-rgbd"]) == 0
     return out
 
 
@@ -172,7 +173,7 @@ def test_round_trip_export_make_eventreplica_run(tiny_sequence, tmp_path, capsys
     out = tmp_path / "seq"
     code = main(["make-eventreplica", "--layout", "tum-rgbd", "--input", str(export),
                  "--out", str(out), "--width", str(src.width), "--height", str(src.height),
-                 "--upsample", "4", "--no-progress"])
+                 "--upsample", "4", "--quiet"])
     assert code == 0, capsys.readouterr().err
     seq = Sequence.open(out)
     assert len(seq) == len(src) - 1  # frame 0 only starts the interpolation
@@ -184,7 +185,7 @@ def test_round_trip_export_make_eventreplica_run(tiny_sequence, tmp_path, capsys
         np.testing.assert_allclose(seq.depth(i), src.depth(i + 1), atol=1.5 / 5000)
         assert np.abs(seq.sharp(i).astype(int) - src.rgb(i + 1).astype(int)).max() <= 1
     er = seq.meta["eventreplica"]
-    assert er["layout"] == "tum-rgbd" and er["cam_params"] == str(export / "egs_export.yaml")
+    assert er["layout"] == "tum-rgbd" and er["cam_params"] == "../export/egs_export.yaml"
     assert er["original_timestamps_s"] == pytest.approx(
         [float(t) for t in np.loadtxt(export / "rgb.txt", usecols=0)[1:]])
 
@@ -236,13 +237,18 @@ def test_generic_layout_cli(tiny_sequence, tmp_path, capsys):
     args = [a for k, v in paths.items() for a in (k, str(v))]
     code = main(["make-eventreplica", "--layout", "generic", *args, "--out",
                  str(tmp_path / "seq"), "--width", "48", "--height", "32", "--upsample", "2",
-                 "--no-progress"])
+                 "--quiet"])
     assert code == 0, capsys.readouterr().err
     seq = Sequence.open(tmp_path / "seq")
     assert len(seq) == len(src) - 1 and (seq.width, seq.height) == (48, 32)
     # 'auto' keeps the aspect ratio: one factor for both axes, the smallest that covers the
     # 48x32 crop (max(48 / 64, 32 / 48) = 0.75), so 64x48 becomes 48x36
     assert seq.meta["eventreplica"]["resize"] == [48, 36]
+    # meta.yaml travels with the sequence: its inputs relative to it, no path of this machine
+    assert str(tmp_path) not in (tmp_path / "seq" / "meta.yaml").read_text()
+    record = seq.meta["eventreplica"]["layout_record"]
+    assert record["trajectory"] == os.path.relpath(paths["--trajectory"], tmp_path / "seq")
+    assert seq.meta["eventreplica"]["input"].startswith("../in")
     assert seq.intrinsics.fx / seq.intrinsics.fy == pytest.approx(
         src.intrinsics.fx / src.intrinsics.fy)
     np.testing.assert_allclose(seq.poses, src.poses[1:], atol=2e-6)
@@ -324,7 +330,7 @@ def test_bad_tum_input_is_one_line_naming_the_file(tum_export, tmp_path, capsys,
     extra, named, message = _break(tum_export, case)
     code = main(["make-eventreplica", "--layout", "tum-rgbd", "--input", str(tum_export),
                  "--out", str(tmp_path / "out"), "--width", "48", "--height", "32",
-                 "--no-progress", *extra])
+                 "--quiet", *extra])
     assert_cli_error(code, capsys.readouterr().err, 3, f"{named}: ", message)
     assert not (tmp_path / "out").exists()
 
@@ -350,7 +356,7 @@ def test_bad_generic_input_is_one_line_naming_the_file(tiny_sequence, tmp_path, 
             f.unlink()
     args = [a for k, v in paths.items() for a in (k, str(v))]
     code = main(["make-eventreplica", "--layout", "generic", *args, "--out",
-                 str(tmp_path / "out"), "--width", "48", "--height", "32", "--no-progress"])
+                 str(tmp_path / "out"), "--width", "48", "--height", "32", "--quiet"])
     assert_cli_error(code, capsys.readouterr().err, 3, f"{paths[named]}: ", message)
 
 
@@ -374,7 +380,7 @@ def test_bad_generic_input_is_one_line_naming_the_file(tiny_sequence, tmp_path, 
 ])
 def test_bad_layout_options_are_one_line(tmp_path, capsys, monkeypatch, args, message):
     monkeypatch.chdir(tmp_path)
-    code = main(["make-eventreplica", "--out", str(tmp_path / "out"), "--no-progress", *args])
+    code = main(["make-eventreplica", "--out", str(tmp_path / "out"), "--quiet", *args])
     assert_cli_error(code, capsys.readouterr().err, 2, message)
 
 
@@ -397,6 +403,15 @@ def test_output_may_not_replace_the_input_layout(tum_export, capsys, where):
     out = tum_export if where == "input" else tum_export / "rgb"
     code = main(["make-eventreplica", "--layout", "tum-rgbd", "--input", str(tum_export),
                  "--out", str(out), "--overwrite", "--width", "48", "--height", "32",
-                 "--no-progress"])
+                 "--quiet"])
     assert_cli_error(code, capsys.readouterr().err, 2, out)
     assert sorted(p.relative_to(tum_export) for p in tum_export.rglob("*")) == before
+
+
+def test_shareable_paths_are_relative_to_the_output_or_only_a_name(tmp_path):
+    from egs_bench.outputs import shareable_path
+
+    out = tmp_path / "data" / "seq"
+    assert shareable_path(tmp_path / "data" / "replica" / "room0", out) == "../replica/room0"
+    assert shareable_path(out / "x.yaml", out) == "x.yaml"
+    assert shareable_path(tmp_path / "elsewhere" / "room0", out) == "room0"  # outside: name

@@ -215,5 +215,5 @@ def test_cli_list_scenes_and_errors(capsys, tmp_path: Path) -> None:
     assert_cli_error(code, capsys.readouterr().err, 2, "unknown scene 'nope'")
     assert cli_main(["make-synthetic", "--scene", "studio", "--out", str(tmp_path / "s"),
                      "--frames", "2", "--width", "32", "--height", "20", "--supersample", "1",
-                     "--no-progress"]) == 0
+                     "--quiet"]) == 0
     assert (tmp_path / "s" / "meta.yaml").is_file()

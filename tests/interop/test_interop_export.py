@@ -53,10 +53,12 @@ def test_monogs_tum_parser_pairs_every_frame(seq: Sequence, tum_export: Path) ->
     cal = cfg["Dataset"]["Calibration"]
     assert cfg["inherit_from"] == "configs/rgbd/tum/base_config.yaml"
     assert cfg["Dataset"]["type"] == "tum" and cfg["Dataset"]["single_thread"] is True
-    assert cfg["Dataset"]["dataset_path"] == str(tum_export.resolve()) + "/"
+    # relative to the MonoGS checkout, where the export is linked: no path of this machine
+    assert cfg["Dataset"]["dataset_path"] == f"datasets/egs_bench/{tum_export.name}/"
+    assert str(tum_export.parent) not in (tum_export / "monogs_rgbd.yaml").read_text()
     assert (cal["cx"], cal["cy"]) == (seq.intrinsics.cx - 0.5, seq.intrinsics.cy - 0.5)
     assert (cal["width"], cal["height"], cal["distorted"]) == (seq.width, seq.height, False)
-    colors, depths, poses = monogs_tum_parser(cfg["Dataset"]["dataset_path"])
+    colors, depths, poses = monogs_tum_parser(f"{tum_export}/")
     assert len(colors) == len(seq)
     for i in range(len(seq)):
         image = np.array(Image.open(colors[i]))
@@ -154,7 +156,9 @@ def test_replica_layout_read_by_monogs_and_egs_bench(seq: Sequence, tmp_path: Pa
     assert read_replica(out).intrinsics == seq.intrinsics  # egs-bench's own reader agrees
     nice = yaml.safe_load((out / "nice_slam.yaml").read_text())
     assert nice["cam"]["W"] == seq.width and nice["cam"]["cx"] == seq.intrinsics.cx - 0.5
-    assert nice["data"]["input_folder"] == str(out.resolve())
+    assert nice["data"]["input_folder"] == f"datasets/egs_bench/{out.name}"
+    for config in ("nice_slam.yaml", "monogs_replica.yaml"):
+        assert str(out.parent) not in (out / config).read_text(), config
     centres = seq.poses[:, :3, 3]
     for axis, (lo, hi) in enumerate(nice["mapping"]["bound"]):
         assert lo < centres[:, axis].min() and hi > centres[:, axis].max()
@@ -216,10 +220,10 @@ def test_output_safety(seq: Sequence, tmp_path: Path) -> None:
 def test_cli_export_and_errors(tiny_sequence: Path, tmp_path: Path, capsys) -> None:
     from egs_bench.cli import main
 
-    assert main(["export", str(tiny_sequence), str(tmp_path / "o"), "--format", "tum-rgbd",
+    assert main(["export", str(tiny_sequence), "-o", str(tmp_path / "o"), "--format", "tum-rgbd",
                  "--quiet"]) == 0
     assert (tmp_path / "o" / "monogs_rgbd.yaml").is_file()
-    code = main(["export", str(tiny_sequence), str(tmp_path / "o2"), "--format", "kitti"])
+    code = main(["export", str(tiny_sequence), "-o", str(tmp_path / "o2"), "--format", "kitti"])
     assert_cli_error(code, capsys.readouterr().err, 2, "--format", "kitti")
     assert not (tmp_path / "o2").exists()
 
@@ -265,6 +269,6 @@ def test_cli_export_of_a_truncated_frame(tiny_sequence: Path, tmp_path: Path, ca
     from egs_bench.cli import main
 
     src = _damaged_copy(tiny_sequence, tmp_path / "seq", "rgb", "truncated")
-    code = main(["export", str(src), str(tmp_path / "o"), "--format", "tum-rgbd", "--quiet"])
+    code = main(["export", str(src), "-o", str(tmp_path / "o"), "--format", "tum-rgbd", "--quiet"])
     assert_cli_error(code, capsys.readouterr().err, 3, src / "rgb" / "000002.png")
     assert not (tmp_path / "o").exists()

@@ -380,12 +380,12 @@ def test_cli_import_run(seq: Sequence, export: Path, tmp_path: Path, capsys) -> 
 
     _orbslam_folder(tmp_path / "orb", seq)
     assert main(["import-run", str(tmp_path / "orb" / "KeyFrameTrajectory.txt"),
-                 str(tmp_path / "run"), "--from", "orbslam2", "--export", str(export)]) == 0
+                 "-o", str(tmp_path / "run"), "--from", "orbslam2", "--export", str(export)]) == 0
     out = capsys.readouterr().out
     assert "imported ORB-SLAM2 on plane" in out and "poses: keyframes" in out
     assert main(["eval", str(tmp_path / "run")]) == 0
     assert "keyframes poses only" in capsys.readouterr().out
-    code = main(["import-run", str(tmp_path / "orb"), str(tmp_path / "run2"), "--from",
+    code = main(["import-run", str(tmp_path / "orb"), "-o", str(tmp_path / "run2"), "--from",
                  "tum"])
     assert_cli_error(code, capsys.readouterr().err, 2, "--from tum needs --method and --sequence")
 
@@ -446,7 +446,7 @@ def test_tum_import_validates_as_eval_would(seq: Sequence, tmp_path: Path, capsy
          "frame 12, beyond the sequence's 10 frames"),
     ]
     for argv, message in cases:
-        code = main(["import-run", *argv, str(out), "--from", "tum", "-m", "ext", "-s",
+        code = main(["import-run", *argv, "-o", str(out), "--from", "tum", "-m", "ext", "-s",
                      "plane"])
         assert_cli_error(code, capsys.readouterr().err, 3, message)
         assert not out.exists() and _no_leftovers(tmp_path), argv
@@ -468,7 +468,7 @@ def test_external_import_with_a_bad_render_leaves_nothing(seq: Sequence, export:
     good = jpg.read_bytes()
     _truncate(jpg)
     out = tmp_path / "run"
-    code = main(["import-run", str(tmp_path / "ps"), str(out), "--from", "photoslam",
+    code = main(["import-run", str(tmp_path / "ps"), "-o", str(out), "--from", "photoslam",
                  "--export", str(export)])
     assert_cli_error(code, capsys.readouterr().err, 3, jpg)
     assert not out.exists() and _no_leftovers(tmp_path)

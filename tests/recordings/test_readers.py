@@ -241,3 +241,29 @@ def test_missing_hdf5_filter_is_named(tmp_path: Path) -> None:
                                          r"unregistered \(id 32123\)") as info:
         EventStream(path, 64, 48)
     assert "corrupt" not in str(info.value)
+
+
+def test_a_bag_without_rosbags_installed_is_one_line_naming_the_extra(tmp_path, monkeypatch):
+    import sys
+
+    from egs_bench.errors import ConfigError
+    from egs_bench.recordings.rosbag import BagFile
+
+    bag = tmp_path / "x.bag"
+    bag.write_bytes(b"#ROSBAG V2.0\n")
+    monkeypatch.setitem(sys.modules, "rosbags.highlevel", None)  # import raises ImportError
+    with pytest.raises(ConfigError, match=r"pip install 'egs-bench\[ros\]'"):
+        BagFile(bag)
+
+
+def test_a_filter_hdf5plugin_provides_names_the_extra(tmp_path, monkeypatch):
+    from egs_bench.datasets.events import _read_error
+
+    path = tmp_path / "events.h5"
+    with h5py.File(path, "w") as f:
+        f.create_dataset("events/t", data=np.zeros(4, "i8"), chunks=(4,), **hdf5plugin.Zstd())
+    # as without hdf5plugin: HDF5 has no Zstd filter, and the read fails
+    monkeypatch.setattr(h5py.h5z, "filter_avail", lambda fid: fid != 32015)
+    with h5py.File(path, "r") as f:
+        error = _read_error(path, f, OSError("Can't open directory or file"))
+    assert "Zstd (id 32015)" in str(error) and "pip install 'egs-bench[hdf5]'" in str(error)

@@ -3,19 +3,12 @@
 from __future__ import annotations
 
 from egs_bench.slam.progress import COMPILING, PhaseProgress
-
-
-class _Clock:
-    def __init__(self) -> None:
-        self.now = 0.0
-
-    def __call__(self) -> float:
-        return self.now
+from tests.helpers.clock import FakeClock as _Clock
 
 
 def test_compiling_is_said_and_the_eta_ignores_the_compiling_iteration():
     clock, ready = _Clock(), [False]
-    progress = PhaseProgress(lambda: ready[0], clock)
+    progress = PhaseProgress(lambda: ready[0], clock, cold_cache=lambda: True)
     assert progress.text("map init", 0, 150) == f"map init 0/150 iterations, {COMPILING}"
     clock.now, ready[0] = 300.0, True  # the first iteration compiled for 300 s
     assert progress.text("map init", 1, 150) == "map init 1/150 iterations"
@@ -23,6 +16,25 @@ def test_compiling_is_said_and_the_eta_ignores_the_compiling_iteration():
     assert progress.text("map init", 3, 150) == "map init 3/150 iterations, ETA 147 s"
     clock.now = 349.0
     assert progress.text("map init", 50, 150) == "map init 50/150 iterations, ETA 100 s"
+
+
+def test_kernels_in_the_cache_are_not_said_to_compile_but_their_load_is_no_eta():
+    clock, ready, asked = _Clock(), [False], []
+    progress = PhaseProgress(lambda: ready[0], clock, cold_cache=lambda: asked.append(1) or False)
+    assert progress.text("map init", 0, 150) == "map init 0/150 iterations"
+    assert progress.text("map init", 0, 150) == "map init 0/150 iterations"
+    assert asked == [1]  # the cache is looked at once
+    clock.now, ready[0] = 2.0, True  # the first iteration loaded the kernels
+    assert progress.text("map init", 1, 150) == "map init 1/150 iterations"
+    clock.now = 4.0
+    assert progress.text("map init", 3, 150) == "map init 3/150 iterations, ETA 147 s"
+
+
+def test_the_default_cache_check_reads_numba_s_cache():
+    from egs_bench.slam.progress import _render_kernels_uncached
+    from egs_bench.warmup import uncached_kernels
+
+    assert _render_kernels_uncached() == bool(uncached_kernels("egs_bench.render"))
 
 
 def test_a_later_phase_with_compiled_kernels_gets_an_eta_from_its_start():

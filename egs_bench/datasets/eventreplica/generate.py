@@ -28,7 +28,7 @@ from egs_bench.datasets.pipeline import SamplingConfig, generate_sequence
 from egs_bench.datasets.replica import read_replica
 from egs_bench.datasets.rgbd_layouts import RGBDInput
 from egs_bench.errors import ConfigError, InputError
-from egs_bench.outputs import prepare_output
+from egs_bench.outputs import prepare_output, shareable_path
 
 
 def exposure_windows(
@@ -135,11 +135,14 @@ def make_eventreplica(
     sim = sim or EventSimConfig()
     meta_extra: dict[str, Any] = {
         "name": Path(out).name,
-        "source": f"EventReplica generator from {scene.path.resolve()}",
+        # meta.yaml goes along with the sequence: the inputs relative to it, no local paths
+        "source": f"EventReplica generator from {shareable_path(scene.path, out)}",
         "eventreplica": {
-            "input": str(scene.path.resolve()),
+            "input": shareable_path(scene.path, out),
+            "paths_relative_to": "this sequence folder (a path outside its parent: name only)",
             "layout": scene.layout,
-            "cam_params": None if scene.cam_params_path is None else str(scene.cam_params_path),
+            "cam_params": None if scene.cam_params_path is None
+            else shareable_path(scene.cam_params_path, out),
             "input_intrinsics": scene.intrinsics.to_dict(),
             "input_intrinsics_note": "egs-bench convention: Replica cx, cy + 0.5",
             "stride": stride,
@@ -149,7 +152,8 @@ def make_eventreplica(
             **({} if scene.timestamps_s is None else {"original_timestamps_s": [
                 round(float(scene.timestamps_s[source.frame_indices[i]]), 6) for i in ids]}),
             **({"distortion": list(scene.distortion)} if scene.distortion else {}),
-            **({"layout_record": scene.record} if scene.record else {}),
+            **({"layout_record": {k: shareable_path(v, out) if isinstance(v, Path) else v
+                                  for k, v in scene.record.items()}} if scene.record else {}),
             "resize": list(source.geometry.resized_size(scene.intrinsics)),
             "resize_rule": resize if isinstance(resize, str) or resize is None else "explicit",
             "crop": [width, height],
