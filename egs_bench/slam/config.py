@@ -172,20 +172,19 @@ class BudgetConfig:
     lr_colors: float = 0.0025 * 0.28209479  # (MonoGS f_dc lr expressed on colours)
     lr_opacity: float = 0.05            # (MonoGS)
     lr_scales: float = 0.001 * 6        # (MonoGS, times its spatial_lr_scale 6)
-    # Coarse-to-fine (egs_bench/slam/levels.py): the first fraction of each tracking call's /
-    # mapping round's iterations renders at coarse_scale x the internal resolution
-    # (1.0 = off). Each coarse iteration costs about scale^2 of a fine one's blends.
-    tracking_coarse_scale: float = 1.0
-    tracking_coarse_fraction: float = 0.0
-    mapping_coarse_scale: float = 1.0
-    mapping_coarse_fraction: float = 0.0
-    # Which pixels of a new keyframe become Gaussians: "all" valid ones (MonoGS), or only
-    # those the map does not explain yet: rendered opacity below insertion_alpha, or expected
-    # depth off by more than insertion_depth_error x the measured depth. Both then keep
-    # 1 in pcd_downsample of the candidates.
+    # Coarse-to-fine (egs_bench/slam/levels.py): the first fraction of each tracking call's and
+    # mapping round's iterations render at coarse_scale x the internal resolution, about
+    # scale^2 of a fine iteration's blends; the last iteration is always fine.
+    tracking_coarse_scale: float = 1.0     # coarse level of tracking (1.0 = off)
+    tracking_coarse_fraction: float = 0.0  # share of tracking iterations at that level
+    mapping_coarse_scale: float = 1.0      # coarse level of mapping rounds (1.0 = off)
+    mapping_coarse_fraction: float = 0.0   # share of mapping iterations at that level
+    # Which pixels of a new keyframe may become Gaussians (1 in pcd_downsample of them):
+    # "all" valid ones (MonoGS), or "uncovered": rendered opacity below insertion_alpha or
+    # expected depth off by more than insertion_depth_error x the measured depth.
     insertion: InsertionRule = "all"
-    insertion_alpha: float = 0.5
-    insertion_depth_error: float = 0.1
+    insertion_alpha: float = 0.5           # "uncovered": opacity below which a pixel is new
+    insertion_depth_error: float = 0.1     # "uncovered": relative depth error that is new
 
 
 @dataclass(frozen=True)

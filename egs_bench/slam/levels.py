@@ -48,7 +48,9 @@ def level_edge_blocks(edge_blocks: int | None, scale: float) -> int | None:
 
 
 def coarse_iterations(iterations: int, scale: float, fraction: float) -> int:
-    """How many of ``iterations`` run at the coarse level (0 when ``scale`` is 1)."""
+    """How many of ``iterations`` run at the coarse level: ``round(fraction x iterations)``,
+    but never the last one, so every call and round ends at the internal resolution (0 when
+    ``scale`` is 1)."""
     if scale >= 1.0 or fraction <= 0.0:
         return 0
-    return min(iterations, int(round(iterations * fraction)))
+    return max(0, min(iterations - 1, int(round(iterations * fraction))))

@@ -15,7 +15,8 @@ from egs_bench.datasets.sequence_view import SequenceView
 from egs_bench.errors import ConfigError, InputError
 from egs_bench.fileio import write_text_atomic
 from egs_bench.geometry import invert_pose
-from egs_bench.render.numba_backend import kernels_ready, prepare_kernels
+from egs_bench.render import numba_backend
+from egs_bench.render.numba_backend import kernels_ready
 from egs_bench.render.rasterize import resolve_backend
 from egs_bench.runs.folder import RunFolder
 from egs_bench.slam.appearance import APPEARANCE_FILE, MAP_FILE, Appearance, ldr8, write_appearance
@@ -106,7 +107,7 @@ def run_slam(seq: SequenceView, out: str | Path, *, method_name: str, config: Sl
         # gives compile_s apart, so a cold cache does not lower the run's frame rate.
         t_compile = time.perf_counter()
         if resolve_backend(config.runtime.backend, system.device) == "numba":
-            prepare_kernels()
+            numba_backend.prepare_kernels()
         compile_s = time.perf_counter() - t_compile
         bar = tqdm(total=n, desc=f"{method_name} {seq.name}", unit="frame", disable=not progress)
         t_start = time.perf_counter()

@@ -114,3 +114,27 @@ def test_info_shows_a_run_and_its_work(plain, capsys, monkeypatch):
     assert code == 0, err
     assert "egs" in out and "work per frame after frame 0" in out
     assert "blends forward" in out and "kernels" in out
+
+
+def test_compilation_is_not_in_the_frame_rate(tiny_room, tmp_path, monkeypatch):
+    """A cold kernel cache (here: a preparation that takes 2 s) shows in compile_s, not in the
+    SLAM loop's time that the FPS divides by."""
+    import time
+
+    from egs_bench.render import numba_backend
+
+    def slow_prepare() -> None:
+        time.sleep(2.0)
+
+    monkeypatch.setattr(numba_backend, "prepare_kernels", slow_prepare)
+    run, _ = _run(tiny_room, tmp_path / "cold", tracking_iters=2, init_iters=2)
+    timing = json.loads((run.path / "timing.json").read_text())
+    assert timing["compile_s"] >= 2.0
+    assert timing["total_wall_s"] - sum(timing["per_frame_s"]) < 2.0
+
+
+@pytest.mark.parametrize("iterations, fraction, expected", [
+    (20, 0.85, 17), (30, 0.95, 28), (3, 0.85, 2), (1, 0.9, 0), (0, 0.5, 0), (10, 0.0, 0)])
+def test_coarse_iterations_always_end_at_the_fine_level(iterations, fraction, expected):
+    assert coarse_iterations(iterations, 0.25, fraction) == expected
+    assert coarse_iterations(iterations, 1.0, fraction) == 0  # scale 1: no coarse level
