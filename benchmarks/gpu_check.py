@@ -7,11 +7,16 @@ environment. Steps, each timed and bounded:
 2. the CUDA tests (``pytest -m cuda``: gsplat against the reference rasteriser, SLAM on CUDA
    against the CPU);
 3. the built-in 448x256 sequence (generated on first use);
-4. ``egs`` and ``monogs`` with the ``paper`` preset on its first ``--frames`` frames, once per
-   mapping schedule (``--schedules``: ``mapping_mode`` sequential and concurrent): FPS,
-   per-frame seconds, ATE and PSNR against the sharp ground truth, tracking iterations per
-   frame; a run that would start after ``--until-s`` seconds is left out and listed as such;
-5. the overhead counts of ``bench_slam_overhead.py`` with wall time per iteration.
+4. ``egs`` and ``monogs`` on its first ``--frames`` frames, once per ``--runs`` entry
+   ``PRESET[:MAPPING_MODE]`` (default: the paper budget sequential and concurrent, and the
+   ``cpu`` preset, the CPU default): FPS, per-frame seconds, ATE and PSNR against the sharp
+   ground truth, tracking iterations per frame, and the rendering work per frame (cameras,
+   pixels, tile intersections; slam_stats.json's ``work``) next to the time; a run that would
+   start after ``--until-s`` seconds is left out and listed as such;
+5. the overhead counts of ``bench_slam_overhead.py`` with wall time per iteration;
+6. a torch-profiler trace of one ``egs`` and one ``monogs`` mapping iteration on two
+   keyframes (``--profile-views``): CUDA time per kernel, the data that explains why an
+   ``egs`` mapping camera costs 8-10x a ``monogs`` one (docs/notes/engine_cost_2026-12-04.md).
 
 Everything lands in one JSON file (``--json``, default ``gpu_check.json``) and its Markdown
 table next to it (``gpu_check.md``), the table BENCHMARKS.md shows.
@@ -91,7 +96,8 @@ def cuda_tests(timeout_s: float) -> dict:
             "log_tail": lines[-40:]}
 
 
-def run_method(method: str, seq: Sequence, frames: int, out: Path, schedule: str) -> dict:
+def run_method(method: str, seq: Sequence, frames: int, out: Path, schedule: str,
+               preset: str = "paper") -> dict:
     import numpy as np
 
     from egs_bench.eval.ate import ate_from_files
@@ -100,7 +106,7 @@ def run_method(method: str, seq: Sequence, frames: int, out: Path, schedule: str
 
     t = time.perf_counter()
     run = with_options(get_method(method), {"mapping_mode": schedule}).run(
-        seq, out, preset="paper", device="cuda", seed=0, max_frames=frames, progress=False)
+        seq, out, preset=preset, device="cuda", seed=0, max_frames=frames, progress=False)
     wall = time.perf_counter() - t
     timing = json.loads((run.path / "timing.json").read_text())
     stats = json.loads((run.path / "slam_stats.json").read_text())
@@ -119,7 +125,47 @@ def run_method(method: str, seq: Sequence, frames: int, out: Path, schedule: str
             "gaussians": stats["gaussians"], "divergences": len(stats["divergences"]),
             "fps_after_frame0": (len(per_frame) - 1) / sum(per_frame[1:])
             if len(per_frame) > 1 else None,
-            "ate_rmse_cm": 100 * ate.rmse, "psnr_db": float(np.mean(psnrs)) if psnrs else None}
+            "ate_rmse_cm": 100 * ate.rmse, "psnr_db": float(np.mean(psnrs)) if psnrs else None,
+            "preset": preset, "compile_s": timing.get("compile_s"),
+            "work_per_frame_after_frame0": (stats.get("work") or {}).get("per_frame_after_init")}
+
+
+def profile_mapping(method: str, seq: Sequence, views: int = 2, iters: int = 5) -> dict:
+    """CUDA time per kernel of ``iters`` mapping iterations of ``method`` (paper preset) on the
+    first ``views`` frames as keyframes at their true poses, after a short initialisation."""
+    import numpy as np
+    import torch
+    from torch.profiler import ProfilerActivity, profile
+
+    from egs_bench.geometry import invert_pose
+    from egs_bench.runs.registry import get_method
+    from egs_bench.slam.frames import FrameState
+    from egs_bench.slam.system import SlamSystem
+
+    cfg = get_method(method).config("paper", seq.meta).replace(init_iters=30)  # type: ignore[attr-defined]
+    system = SlamSystem(seq, cfg, device="cuda", seed=0)
+    states, obs = {}, {}
+    for i in range(views):
+        pose = invert_pose(np.asarray(seq.poses[i], dtype=np.float64))
+        states[i], obs[i] = FrameState(i, pose.copy(), pose.copy()), system.obs(i)
+        system.insert(obs[i], states[i], cfg.budget.pcd_downsample_init, i)
+    window = list(range(views))[::-1]
+    system.mapper.optimise(states, obs, window, window, 3)  # warm: allocations, autotuning
+    torch.cuda.synchronize()
+    with profile(activities=[ProfilerActivity.CPU, ProfilerActivity.CUDA]) as prof:
+        system.mapper.optimise(states, obs, window, window, iters)
+        torch.cuda.synchronize()
+    rows = []
+    for e in prof.key_averages():
+        cuda_us = getattr(e, "device_time_total", None) or getattr(e, "cuda_time_total", 0)
+        if cuda_us:
+            rows.append({"name": e.key, "calls": e.count,
+                         "cuda_ms_per_iter": cuda_us / 1e3 / iters})
+    rows.sort(key=lambda r: -r["cuda_ms_per_iter"])
+    return {"method": method, "views": views, "cameras": views * system.cfg.n_segments
+            + (views if system.cfg.method.blur_model else 0), "gaussians": len(system.gmap),
+            "iterations": iters, "kernels": rows[:25],
+            "cuda_ms_per_iter_total": sum(r["cuda_ms_per_iter"] for r in rows)}
 
 
 def markdown_table(report: dict) -> str:
@@ -129,24 +175,27 @@ def markdown_table(report: dict) -> str:
              f"{env.get('gsplat', '?')}; {seq.get('name', '?')} {seq.get('resolution', '')}, "
              f"first {seq.get('frames_used', '?')} frames, paper budget, seed 0, "
              f"{report.get('date', '')}", "",
-             "| method | mapping | FPS | FPS after frame 0 | frame 0 s | per-frame s (median) "
-             "| tracking iterations / frame | ATE cm | PSNR dB |",
-             "|:--|:--|--:|--:|--:|--:|--:|--:|--:|"]
+             "| method | preset | mapping | FPS | FPS after frame 0 | frame 0 s | per-frame s "
+             "(median) | tracking iterations / frame | Mpixels / frame | ATE cm | PSNR dB |",
+             "|:--|:--|:--|--:|--:|--:|--:|--:|--:|--:|--:|"]
 
     def num(value, digits: int) -> str:
         return "--" if value is None else f"{value:.{digits}f}"
 
     for key, r in report.get("runs", {}).items():
-        method, schedule = key.split("/")
+        parts = key.split("/")
+        method, preset, schedule = parts if len(parts) == 3 else (parts[0], "paper", parts[1])
         if "skipped" in r:
-            lines.append(f"| {method} | {schedule} | not run ({r['skipped']}) "
-                         "| | | | | | |")
+            lines.append(f"| {method} | {preset} | {schedule} | not run ({r['skipped']}) "
+                         "| | | | | | | |")
             continue
-        lines.append(f"| {method} | {schedule} | {num(r['fps'], 2)} "
+        work = r.get("work_per_frame_after_frame0") or {}
+        mpix = work.get("pixels") / 1e6 if work.get("pixels") is not None else None
+        lines.append(f"| {method} | {preset} | {schedule} | {num(r['fps'], 2)} "
                      f"| {num(r['fps_after_frame0'], 2)} | {num(r['frame0_s'], 1)} "
                      f"| {num(r['per_frame_s_median'], 2)} "
-                     f"| {num(r['tracking_iterations_mean'], 1)} | {num(r['ate_rmse_cm'], 2)} "
-                     f"| {num(r['psnr_db'], 2)} |")
+                     f"| {num(r['tracking_iterations_mean'], 1)} | {num(mpix, 2)} "
+                     f"| {num(r['ate_rmse_cm'], 2)} | {num(r['psnr_db'], 2)} |")
     return "\n".join(lines)
 
 
@@ -154,8 +203,10 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--seq", default="office1", help="448x256 built-in sequence (or folder)")
     ap.add_argument("--frames", type=int, default=40, help="frames per run")
-    ap.add_argument("--schedules", default="sequential,concurrent",
-                    help="mapping_mode values to run each method with")
+    ap.add_argument("--runs", default="paper:sequential,cpu:sequential,paper:concurrent",
+                    help="PRESET[:MAPPING_MODE] entries to run each method with")
+    ap.add_argument("--profile-views", type=int, default=2,
+                    help="keyframes of the profiled mapping iteration (0: no profile)")
     ap.add_argument("--until-s", type=float, default=540.0,
                     help="start no run after this many seconds of the check")
     ap.add_argument("--methods", default="egs,monogs")
@@ -197,11 +248,13 @@ def main(argv: list[str] | None = None) -> int:
     from egs_bench.runs.folder import RunFolder
 
     for method in args.methods.split(","):
-        for schedule in args.schedules.split(","):
+        for entry in args.runs.split(","):
             import shutil
 
-            key = f"{method}/{schedule}"
-            out = args.out / method / schedule
+            preset, _, schedule = entry.partition(":")
+            schedule = schedule or "sequential"
+            key = f"{method}/{preset}/{schedule}"
+            out = args.out / method / preset / schedule
             if time.perf_counter() - t_check > args.until_s:
                 report["runs"][key] = {"skipped": f"past --until-s {args.until_s:.0f} s"}
                 print(f"[4/5] {key}: not run (past --until-s)", flush=True)
@@ -212,7 +265,7 @@ def main(argv: list[str] | None = None) -> int:
                                      "choose another --out")
                 shutil.rmtree(out)  # a run folder of an earlier check
             with _timed(report, f"run_{method}_{schedule}"):
-                report["runs"][key] = r = run_method(method, seq, frames, out, schedule)
+                report["runs"][key] = r = run_method(method, seq, frames, out, schedule, preset)
             print(f"[4/5] {key}: {r['fps']:.2f} FPS over {frames} frames "
                   f"({r['fps_after_frame0']:.2f} after frame 0; frame 0 {r['frame0_s']:.1f} s), "
                   f"ATE {r['ate_rmse_cm']:.2f} cm, PSNR {r['psnr_db']:.2f} dB, "
@@ -231,6 +284,20 @@ def main(argv: list[str] | None = None) -> int:
             print(f"[5/5] {r['method']} {phase}: {p['ms_per_iter']:.2f} ms/iteration, "
                   f"{p['slam_ops']:.0f} SLAM-side ops, {p['slam_syncs']:.1f} syncs", flush=True)
     save()
+    if args.profile_views > 0 and time.perf_counter() - t_check < args.until_s:
+        report["profile"] = []
+        for m in args.methods.split(","):
+            try:
+                with _timed(report, f"profile_{m}"):
+                    report["profile"].append(profile_mapping(m, seq, args.profile_views))
+                p = report["profile"][-1]
+                top = ", ".join(f"{k['name'][:40]} {k['cuda_ms_per_iter']:.2f}"
+                                for k in p["kernels"][:4])
+                print(f"[6/6] {m} mapping iteration, {p['cameras']} cameras: "
+                      f"{p['cuda_ms_per_iter_total']:.2f} ms CUDA; top: {top}", flush=True)
+            except Exception as exc:  # a profile is diagnostics: keep the check's results
+                report["profile"].append({"method": m, "error": repr(exc)})
+            save()
     print(f"wrote {args.json}")
     return 0 if report.get("cuda_tests", {}).get("passed", True) else 1
 

@@ -124,6 +124,10 @@ class Schedule:
         refine_iters: final refinement iterations (one keyframe each).
         syncs_per_iter: host-device synchronisations per iteration (1 in today's code).
         concurrent: mapping overlapped with tracking (``mapping_mode: concurrent``).
+        tracking_pixel_share, mapping_pixel_share: mean pixels of a camera of that phase, as
+            a fraction of a camera at the sequence's full resolution (1.0: the fitted runs;
+            lower with ``resolution_scale`` < 1 or coarse-to-fine levels). How a camera's cost
+            follows it is not measured on a GPU yet: see :data:`PIXEL_SCALINGS`.
     """
 
     label: str
@@ -136,6 +140,8 @@ class Schedule:
     refine_iters: int = 0
     syncs_per_iter: int = 1
     concurrent: bool = False
+    tracking_pixel_share: float = 1.0
+    mapping_pixel_share: float = 1.0
 
     @property
     def frames(self) -> int:
@@ -156,24 +162,40 @@ class Prediction:
     fps: float
 
 
-def iteration_ms(phase: str, family: str, cameras: float, syncs: int, c: CostConstants) -> float:
+#: How a camera's cost follows its pixel count, bracketing what no GPU run has measured yet:
+#: ``cameras`` (a camera costs the same at any resolution: fixed per-camera work dominates,
+#: the pessimistic end) and ``pixels`` (cost in proportion to pixels: the optimistic end).
+PIXEL_SCALINGS = ("cameras", "pixels")
+
+
+def iteration_ms(phase: str, family: str, cameras: float, syncs: int, c: CostConstants,
+                 pixel_factor: float = 1.0) -> float:
     """Milliseconds of one iteration (module docstring): host launches and device rendering are
-    serialised by a sync and overlap without one."""
+    serialised by a sync and overlap without one; ``pixel_factor`` scales the cameras' cost."""
     host = LAUNCHES[phase, family] * c.launch_ms
-    device = cameras * c.camera_ms(phase, family)
+    device = cameras * c.camera_ms(phase, family) * pixel_factor
     return host + device if syncs >= 1 else max(host, device)
 
 
-def predict(s: Schedule, c: CostConstants | None = None) -> Prediction:
-    """The predicted time of ``s`` on one H200 with constants ``c`` (default: the fitted ones)."""
+def predict(s: Schedule, c: CostConstants | None = None, scaling: str = "cameras"
+            ) -> Prediction:
+    """The predicted time of ``s`` on one H200 with constants ``c`` (default: the fitted ones),
+    a camera's cost following its pixels as ``scaling`` says (:data:`PIXEL_SCALINGS`)."""
     c = c or CostConstants()
+    if scaling not in PIXEL_SCALINGS:
+        raise ConfigError(f"unknown pixel scaling {scaling!r} ({', '.join(PIXEL_SCALINGS)})")
+    pixels = scaling == "pixels"
+    track_f = s.tracking_pixel_share if pixels else 1.0
+    map_f = s.mapping_pixel_share if pixels else 1.0
 
     def mapping_s(iters: int, cameras: float) -> float:
-        return iters * iteration_ms("mapping", s.family, cameras, s.syncs_per_iter, c) / 1e3
+        return iters * iteration_ms("mapping", s.family, cameras, s.syncs_per_iter, c,
+                                    map_f) / 1e3
 
     init = mapping_s(s.init_iters, s.cameras_per_view)
     track = (sum(s.tracking_iters) / 1e3
-             * iteration_ms("tracking", s.family, s.cameras_per_view, s.syncs_per_iter, c))
+             * iteration_ms("tracking", s.family, s.cameras_per_view, s.syncs_per_iter, c,
+                            track_f))
     mapping = (sum(mapping_s(s.mapping_iters, cams) for cams in s.mapping_cameras)
                + mapping_s(s.refine_iters, s.cameras_per_view))
     total = init + (max(track, mapping) if s.concurrent else track + mapping)
@@ -213,6 +235,7 @@ def build_schedule(label: str, slam: dict[str, Any], tracking_iters: list[int],
         cameras.append(views * per_view)
     # mapping_mode arrives with the concurrent engine; absent means sequential
     modes = [g.get("mapping_mode") for g in slam.values() if isinstance(g, dict)]
+    budget = slam.get("budget") or {}
     return Schedule(
         label=label, family="blur" if blur else "plain", cameras_per_view=per_view,
         init_iters=int(_value(slam, "budget", "init_iters", source)),
@@ -220,7 +243,19 @@ def build_schedule(label: str, slam: dict[str, Any], tracking_iters: list[int],
         mapping_iters=int(_value(slam, "budget", "mapping_iters", source)),
         mapping_cameras=tuple(cameras),
         refine_iters=int(_value(slam, "mapping", "refine_iters", source)),
-        concurrent="concurrent" in modes)
+        concurrent="concurrent" in modes,
+        tracking_pixel_share=level_share(budget, "tracking"),
+        mapping_pixel_share=level_share(budget, "mapping"))
+
+
+def level_share(budget: dict[str, Any], phase: str) -> float:
+    """A camera's mean pixels in ``phase`` as a fraction of the sequence's, from the budget:
+    ``resolution_scale^2`` x (the coarse fraction of iterations x ``coarse_scale^2`` + the
+    rest) (egs_bench/slam/levels.py; fields a budget lacks count as off)."""
+    scale = float(budget.get("resolution_scale", 1.0))
+    coarse = float(budget.get(f"{phase}_coarse_scale", 1.0))
+    fraction = float(budget.get(f"{phase}_coarse_fraction", 0.0)) if coarse < 1.0 else 0.0
+    return scale ** 2 * (fraction * coarse ** 2 + 1.0 - fraction)
 
 
 _REMOVED = re.compile(r"frame (\d+): keyframe; window -\[([^\]]*)\]")
@@ -258,7 +293,29 @@ def schedule_from_run(run: Path) -> Schedule:
         for m in _REMOVED.finditer(read_text(log)):
             removed[int(m.group(1))] = len([x for x in m.group(2).split(",") if x.strip()])
     # slam_stats' first entry is frame 0, whose "iterations" are the map initialisation's
-    return build_schedule(str(run), config["slam"], iters[1:], keyframes, removed, cfg_path)
+    s = build_schedule(str(run), config["slam"], iters[1:], keyframes, removed, cfg_path)
+    work = read_json_object(stats_path).get("work")
+    full = _full_pixels(run)
+    if isinstance(work, dict) and full:
+        # the counted shares replace the budget's nominal ones (they include rounding)
+        phases = work.get("by_phase") or {}
+        shares = {p: phases[p]["pixels"] / (phases[p]["cameras"] * full)
+                  for p in ("tracking", "mapping") if (phases.get(p) or {}).get("cameras")}
+        s = s.replace(tracking_pixel_share=shares.get("tracking", s.tracking_pixel_share),
+                      mapping_pixel_share=shares.get("mapping", s.mapping_pixel_share))
+    return s
+
+
+def _full_pixels(run: Path) -> int | None:
+    """Pixels of one camera at the run's sequence resolution (appearance.json's camera)."""
+    path = run / "appearance.json"
+    if not path.is_file():
+        return None
+    cam = read_json_object(path).get("camera") or {}
+    try:
+        return int(cam["width"]) * int(cam["height"])
+    except (KeyError, TypeError, ValueError):
+        return None
 
 
 # ------------------------------------------------------------------ the measured H200 runs
@@ -367,18 +424,37 @@ def converged(s: Schedule, mean_iters: float) -> Schedule:
                      tracking_iters=iters)
 
 
-def paper_scale(method: str, frames: int = 300) -> Schedule:
-    """A ``frames``-frame paper-budget run of ``method`` with a keyframe at every allowed
-    interval (keyframes.interval), the window full and random keyframes added: the most
-    mapping a run can do, for time estimates (the cpu-budget 300-frame runs had 69-75
+def paper_scale(method: str, frames: int = 300, preset: str = "paper") -> Schedule:
+    """A ``frames``-frame run of ``method`` at ``preset``'s budget with a keyframe at every
+    allowed interval (keyframes.interval), the window full and random keyframes added: the
+    most mapping a run can do, for time estimates (the cpu-budget 300-frame runs had 69-75
     keyframes, this gives 75)."""
     from egs_bench.slam.methods import BUILTIN
 
-    slam = BUILTIN[method].config("paper").to_dict()
+    slam = BUILTIN[method].config(preset).to_dict()
     kfs = list(range(0, frames, int(slam["keyframes"]["interval"])))
     iters = [slam["budget"]["tracking_iters"]] * (frames - 1)
-    return build_schedule(f"{method}, {frames} frames, keyframe every "
+    return build_schedule(f"{method}, {preset} preset, {frames} frames, keyframe every "
                           f"{slam['keyframes']['interval']}", slam, iters, kfs, {}, Path("config"))
+
+
+def preset_predictions(c: CostConstants, frames: tuple[int, ...] = (25, 300)) -> list[str]:
+    """Markdown lines: every preset's predicted H200 FPS for egs and monogs over ``frames``
+    of ``office1``, as the range between the two :data:`PIXEL_SCALINGS`. Predictions, not
+    measurements: only the paper preset at full resolution was measured."""
+    from egs_bench.slam.config import PRESETS
+
+    lines = ["| prediction (H200, office1, keyframe every interval) | frames | pixels per "
+             "tracking / mapping camera | FPS if a camera's cost follows its pixels | FPS if "
+             "it does not |", "|---|---:|---:|---:|---:|"]
+    for preset in PRESETS:
+        for method in FAMILY_METHOD.values():
+            for n in frames:
+                s = paper_scale(method, n, preset)
+                fast, slow = (predict(s, c, scaling).fps for scaling in ("pixels", "cameras"))
+                lines.append(f"| {method}, {preset} | {n} | {s.tracking_pixel_share:.2f} / "
+                             f"{s.mapping_pixel_share:.2f} | {fast:.2f} | {slow:.2f} |")
+    return lines
 
 
 def _fmt(p: Prediction) -> str:
@@ -451,6 +527,8 @@ def main(argv: list[str] | None = None) -> int:
                     help=f"exit 1 if the model misses a measured FPS by more than "
                          f"{CHECK_TOLERANCE * 100:.0f} %%")
     ap.add_argument("--table", action="store_true", help="measured vs model and predictions")
+    ap.add_argument("--presets", action="store_true",
+                    help="predicted FPS of every preset over 25 and 300 frames of office1")
     ap.add_argument("--fit", action="store_true", help="refit the constants, print them")
     ap.add_argument("--run", type=Path, action="append", default=[],
                     help="a SLAM run folder whose work to count and predict")
@@ -464,8 +542,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--measured", type=Path, default=MEASURED_JSON,
                     help="the H200 gpu_check JSON the constants and the check refer to")
     args = ap.parse_args(argv)
-    if not (args.check or args.table or args.fit or args.run):
-        ap.error("give --check, --table, --fit or --run RUN")
+    if not (args.check or args.table or args.fit or args.run or args.presets):
+        ap.error("give --check, --table, --fit, --presets or --run RUN")
     if args.tracking_iters_mean is not None and not args.tracking_iters_mean >= 0:
         ap.error("--tracking-iters-mean must be >= 0")
 
@@ -485,13 +563,19 @@ def main(argv: list[str] | None = None) -> int:
             if args.concurrent:
                 s = s.replace(concurrent=True)
             p = predict(s, c)
+            fast = predict(s, c, "pixels")
             print(f"{s.label}: {s.frames} frames, {len(s.mapping_cameras)} mapping rounds, "
                   f"mean tracking iterations {np.mean(s.tracking_iters or (0,)):.1f}"
-                  f"{', mapping concurrent' if s.concurrent else ''}: prediction on one H200 "
+                  f"{', mapping concurrent' if s.concurrent else ''}, pixels per camera "
+                  f"{s.tracking_pixel_share:.2f} (tracking) / {s.mapping_pixel_share:.2f} "
+                  f"(mapping) of the sequence's: prediction on one H200 "
                   f"{p.fps:.2f} FPS (init {p.init_s:.1f} s, tracking {p.tracking_s:.1f} s, "
-                  f"mapping {p.mapping_s:.1f} s)")
+                  f"mapping {p.mapping_s:.1f} s), {fast.fps:.2f} FPS if a camera's cost "
+                  "follows its pixels")
         if args.table:
             print("\n".join(table(c, args.tracking_iters_mean or 50.0, args.measured)))
+        if args.presets:
+            print("\n".join(preset_predictions(c)))
         if args.check:
             results = check(c, args.measured)
             for method, measured, fps, ok in results:

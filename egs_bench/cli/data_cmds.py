@@ -1,4 +1,4 @@
-"""CLI commands to look at sequences: ``info`` and ``show``."""
+"""CLI commands to look at sequences and runs: ``info`` and ``show``."""
 
 from __future__ import annotations
 
@@ -14,22 +14,34 @@ from egs_bench.cli.choices import SlamPreset
 
 @app.command("info")
 def info(
-    seq: str = typer.Argument(..., help="Sequence folder (canonical format: meta.yaml, ...) or "
+    seq: str = typer.Argument(..., help="Sequence folder (canonical format: meta.yaml, ...), "
                                         "a name under $EGS_BENCH_DATA (built-in names are "
-                                        "generated on first use)."),
+                                        "generated on first use), or a run folder."),
     check: bool = typer.Option(
         True, "--check/--no-check", help="Decode every image and depth map to validate them."
     ),
 ) -> None:
-    """Print a summary of a sequence: frames, duration, resolution, intrinsics, events, blur."""
+    """Print a summary of a sequence (frames, duration, resolution, intrinsics, events, blur)
+    or of a run folder (method, state, map, speed, rendering work)."""
     from egs_bench.datasets.inspect import sequence_summary
     from egs_bench.datasets.registry import load_sequence
+    from egs_bench.runs.folder import RunFolder
+
+    if RunFolder.is_run_folder(seq):
+        from egs_bench.runs.summary import run_summary
+
+        _print_table(f"run {seq}", run_summary(seq))
+        return
 
     sequence = load_sequence(seq)
     if check:
         sequence.validate_contents()
-    table = Table(title=f"sequence {sequence.name}", show_header=False)
-    for key, value in sequence_summary(sequence).items():
+    _print_table(f"sequence {sequence.name}", sequence_summary(sequence))
+
+
+def _print_table(title: str, rows: dict) -> None:
+    table = Table(title=title, show_header=False)
+    for key, value in rows.items():
         if isinstance(value, dict):
             value = ", ".join(f"{k}={v}" for k, v in value.items())
         table.add_row(key, str(value))

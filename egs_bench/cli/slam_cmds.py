@@ -45,7 +45,7 @@ def run_cmd(
     """Run a SLAM method on a sequence and write its run folder."""
     from egs_bench.datasets.registry import load_sequence
     from egs_bench.errors import ConfigError
-    from egs_bench.runs.registry import get_method, supports_overwrite, with_options
+    from egs_bench.runs.registry import describe_run, get_method, supports_overwrite, with_options
     from egs_bench.slam.config import parse_overrides
 
     m = with_options(get_method(method), parse_overrides(options))
@@ -54,6 +54,7 @@ def run_cmd(
     sequence = load_sequence(seq, progress=not quiet)
     out_dir = out or Path("runs") / m.name.replace(":", "_") / sequence.name
     extra: dict = {"overwrite": True} if overwrite else {}
+    typer.echo(describe_run(m, sequence, preset=preset, device=device, seed=seed))
     run = m.run(sequence, out_dir, preset=preset, device=device, seed=seed,
                 max_frames=max_frames, progress=not quiet, **extra)
     typer.echo(f"run folder: {run.path}")

@@ -369,7 +369,9 @@ def evaluate_run(run_dir: str | Path, protocol: str | Protocol = DEFAULT_PROTOCO
     speed = None
     if timing is not None:
         speed = {"fps": timing.fps, "total_wall_s": timing.total_wall_s,
-                 "frames": int(len(timing.per_frame_s)), "render_fps": timing.render_fps}
+                 "frames": int(len(timing.per_frame_s)), "render_fps": timing.render_fps,
+                 "compile_s": timing.compile_s, "init_s": timing.init_s,
+                 "fps_after_init": timing.fps_after_init}
     metrics = {
         "schema_version": METRICS_SCHEMA_VERSION,
         "run": {"method": run.method, "sequence": run.sequence_name, "status": status.state},

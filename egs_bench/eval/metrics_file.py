@@ -13,7 +13,8 @@ Layout (top-level keys; ``per_frame`` lists and the other details stay in the se
     ate             {rmse_m, ..., per_pose}                          (required)
     rpe             {per_frame, per_metre, ...}    absent in files before RPE was scored
     rendering       {psnr_db, ssim, lpips, ..., per_frame}   null: no renders scored
-    speed           {fps, total_wall_s, frames, render_fps}  null: no timing.json
+    speed           {fps, total_wall_s, frames, render_fps, compile_s, init_s,
+                    fps_after_init}  null: no timing.json (fps excludes compile_s)
     coverage        {frames_processed, frames_in_sequence}   null: no sequence; absent in
                                                              files before coverage existed
     notes           [str]

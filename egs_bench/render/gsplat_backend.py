@@ -23,6 +23,7 @@ import torch
 
 from egs_bench.errors import ConfigError
 from egs_bench.render import constants as RC
+from egs_bench.render.work import active, book
 
 
 def _import_gsplat():  # -> module
@@ -71,6 +72,7 @@ def rasterize_gsplat(
     near_plane: float,
     far_plane: float,
     visibility: bool = True,
+    eps2d: float = RC.EPS2D,
 ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor | None, torch.Tensor,
            torch.Tensor, torch.Tensor]:
     """gsplat rendering; returns rgb [C,H,W,3], depth [C,H,W], alpha [C,H,W], visibility
@@ -82,7 +84,7 @@ def rasterize_gsplat(
     C, N = viewmats.shape[0], means.shape[0]
     renders, alphas, meta = gsplat.rasterization(
         means, quats, scales, opacities, colors, viewmats, Ks.to(means.dtype), width, height,
-        near_plane=near_plane, far_plane=far_plane, eps2d=RC.EPS2D, sh_degree=None,
+        near_plane=near_plane, far_plane=far_plane, eps2d=eps2d, sh_degree=None,
         packed=False, tile_size=RC.TILE_SIZE, backgrounds=None, render_mode="RGB+D",
         rasterize_mode="classic",
     )
@@ -90,5 +92,7 @@ def rasterize_gsplat(
     if radii.dim() == 3:  # gsplat >= 1.5: per-axis radii [C,N,2]
         radii = radii.amax(-1)
     vis = touched_visibility(meta, C, N, width, height) if visibility else None
+    flat = meta.get("flatten_ids")
+    book(active(), isects=int(flat.numel()) if flat is not None else 0, blends_counted=False)
     return (renders[..., :3], renders[..., 3], alphas[..., 0], vis,
             radii.to(torch.int32), meta["means2d"], meta["depths"])

@@ -16,6 +16,7 @@ import torch
 from egs_bench.render import constants as RC
 from egs_bench.render import numba_kernels as nk
 from egs_bench.render.projection import Projected, log_opacity_margin
+from egs_bench.render.work import active, book
 
 assert nk.TILE == RC.TILE_SIZE
 
@@ -54,10 +55,13 @@ class _CompositeTiles(torch.autograd.Function):
         t_final = np.empty((C, height, width), np.float64)
         last = np.empty((C, height, width), np.int64)
         touch = np.zeros(isect.shape[0], np.int32)
+        blends = np.zeros(C * _n_tiles(width, height), np.int64)
         consts, centre = nk.tables(RC.ALPHA_MAX, RC.ALPHA_MIN, RC.T_MIN, RC.TOUCH_T,
                                    max(width, height))
         nk.raster_fwd(*arrs, isect, offsets, width, height, rgb, dep, t_final, last, touch,
-                      consts, centre)
+                      blends, consts, centre)
+        ctx.work = active()  # the backward books into the record open now
+        book(ctx.work, isects=int(isect.shape[0]), blends_fwd=int(blends.sum()))
         vis = np.zeros((C, N), np.bool_)
         nk.reduce_touch(isect, offsets, touch, _n_tiles(width, height), vis)
         ctx.saved = (arrs, isect, offsets, t_final, last, width, height)
@@ -82,10 +86,12 @@ class _CompositeTiles(torch.autograd.Function):
         g_dep_np = _np(g_dep) if g_dep is not None else zeros
         g_alpha_np = _np(g_alpha) if g_alpha is not None else zeros
         rows = np.zeros((isect.shape[0], nk.NGRAD), dt)
+        blends = np.zeros(C * _n_tiles(width, height), np.int64)
         consts, centre = nk.tables(RC.ALPHA_MAX, RC.ALPHA_MIN, RC.T_MIN, RC.TOUCH_T,
                                    max(width, height))
         nk.raster_bwd(*arrs, isect, offsets, width, height, t_final, last, g_rgb_np, g_dep_np,
-                      g_alpha_np, rows, consts, centre)
+                      g_alpha_np, rows, blends, consts, centre)
+        book(ctx.work, blends_bwd=int(blends.sum()))
         out = np.zeros((C, N, nk.NGRAD), dt)
         nk.reduce_rows(isect, offsets, rows, _n_tiles(width, height), out)
         grads = torch.from_numpy(out)
@@ -123,3 +129,18 @@ def kernels_ready() -> bool:
     kernels = (nk.bin_tiles, nk.raster_fwd, nk.raster_bwd, nk.reduce_rows, nk.reduce_touch,
                npj.project_fwd, npj.project_bwd)
     return all(kernel.signatures for kernel in kernels)
+
+
+def prepare_kernels(dtype: torch.dtype = torch.float32) -> None:
+    """Compile, or load from the cache, every CPU rasteriser kernel for ``dtype`` now, by
+    rendering one Gaussian forward and backward: a run times this apart from its frames, so
+    a cold cache does not change its frame rate."""
+    from egs_bench.render.rasterize import rasterize
+
+    means = torch.tensor([[0.0, 0.0, 2.0]], dtype=dtype, requires_grad=True)
+    quats = torch.tensor([[1.0, 0.0, 0.0, 0.0]], dtype=dtype)
+    K = torch.tensor([[[20.0, 0.0, 8.0], [0.0, 20.0, 8.0], [0.0, 0.0, 1.0]]], dtype=dtype)
+    out = rasterize(means, quats, torch.full((1, 3), 0.1, dtype=dtype),
+                    torch.tensor([0.5], dtype=dtype), torch.ones((1, 3), dtype=dtype),
+                    torch.eye(4, dtype=dtype)[None], K, 16, 16, backend="numba")
+    (out.rgb.sum() + out.depth.sum()).backward()

@@ -104,11 +104,13 @@ def bin_tiles(mean2d, ext, order, W, H):
 
 @njit(cache=True, parallel=True, fastmath=True)
 def raster_fwd(mean2d, conic, depth, opac, m2s, colors, ext, isect, offsets, W, H,
-               out_rgb, out_depth, out_T, out_last, touch, consts, centre):
+               out_rgb, out_depth, out_T, out_last, touch, blends, consts, centre):
     """Forward compositing. Writes rgb [C,H,W,3], depth [C,H,W] (data dtype), final
     transmittance [C,H,W] (float64, for the backward), index into ``isect`` of each pixel's
-    last contributor [C,H,W] (-1: none) and, per intersection, the number of pixels it touched
-    with the transmittance after it above TOUCH_T.
+    last contributor [C,H,W] (-1: none), per intersection the number of pixels it touched
+    with the transmittance after it above TOUCH_T, and per camera tile [C * tiles] the number
+    of Gaussian-pixel blends it composited (the work accounting's unit,
+    :mod:`egs_bench.render.work`).
 
     Arithmetic is float64 whatever the data dtype. ``exp(power)`` along a row comes from the
     recurrence ``G(u+1) = G(u) E(u)``, ``E(u+1) = E(u) exp(-a)`` (power is quadratic in u):
@@ -137,6 +139,7 @@ def raster_fwd(mean2d, conic, depth, opac, m2s, colors, ext, isect, offsets, W, 
         last = np.full(P, -1, np.int64)
         done = np.zeros(P, np.bool_)
         ndone = 0
+        nblend = 0
         for j in range(offsets[kt], offsets[kt + 1]):
             g = isect[j]
             mx = np.float64(mean2d[k, g, 0])
@@ -185,6 +188,7 @@ def raster_fwd(mean2d, conic, depth, opac, m2s, colors, ext, isect, offsets, W, 
                         ndone += 1
                         continue
                     w = alpha * Tp
+                    nblend += 1
                     acc[p, 0] += w * cr
                     acc[p, 1] += w * cg
                     acc[p, 2] += w * cbl
@@ -196,6 +200,7 @@ def raster_fwd(mean2d, conic, depth, opac, m2s, colors, ext, isect, offsets, W, 
             touch[j] = ntouch
             if ndone == npix:
                 break
+        blends[kt] = nblend
         for v in range(py0, py1):
             for u in range(px0, px1):
                 p = (v - py0) * TILE + (u - px0)
@@ -209,9 +214,10 @@ def raster_fwd(mean2d, conic, depth, opac, m2s, colors, ext, isect, offsets, W, 
 
 @njit(cache=True, parallel=True, fastmath=True)
 def raster_bwd(mean2d, conic, depth, opac, m2s, colors, ext, isect, offsets, W, H,
-               out_T, out_last, g_rgb, g_depth, g_alpha, rows, consts, centre):
+               out_T, out_last, g_rgb, g_depth, g_alpha, rows, blends, consts, centre):
     """Backward of :func:`raster_fwd`: fills ``rows[j]`` (one per intersection) with
-    dL/d(mx, my, a, b, c, r, g, b, opacity, z) of that Gaussian restricted to that tile."""
+    dL/d(mx, my, a, b, c, r, g, b, opacity, z) of that Gaussian restricted to that tile, and
+    ``blends[kt]`` with the number of blends it differentiated (equal to the forward's)."""
     HALF, AMAX, AMIN, ONE = consts[0], consts[1], consts[2], consts[4]
     C = mean2d.shape[0]
     TX = (W + TILE - 1) // TILE
@@ -235,6 +241,7 @@ def raster_bwd(mean2d, conic, depth, opac, m2s, colors, ext, isect, offsets, W, 
         # scalar instead of four channels, since the "behind" colour only enters dL/dalpha
         # through its dot product with dC.
         behind = np.zeros(P, np.float64)
+        nblend = 0
         jmax = -1
         for v in range(py0, py1):
             for u in range(px0, px1):
@@ -298,6 +305,7 @@ def raster_bwd(mean2d, conic, depth, opac, m2s, colors, ext, isect, offsets, W, 
                     alpha = min(og, AMAX)
                     if alpha < AMIN:
                         continue
+                    nblend += 1
                     one_m = ONE - alpha
                     inv = ONE / one_m
                     Ti = Tr[p] * inv  # transmittance in front of this Gaussian
@@ -335,6 +343,7 @@ def raster_bwd(mean2d, conic, depth, opac, m2s, colors, ext, isect, offsets, W, 
             rows[j, 7] = s_bl
             rows[j, 8] = s_o
             rows[j, 9] = s_z
+        blends[kt] = nblend
 
 
 @njit(cache=True, parallel=True)

@@ -320,7 +320,7 @@ class _ProjectFused(torch.autograd.Function):
     @staticmethod
     def forward(ctx: Any, means: torch.Tensor, quats: torch.Tensor, scales: torch.Tensor,
                 opacities: torch.Tensor, viewmats: torch.Tensor, Ks: torch.Tensor,
-                width: int, height: int, near: float, far: float
+                width: int, height: int, near: float, far: float, eps2d: float
                 ) -> tuple[torch.Tensor, ...]:
         arrs = _kernel_arrays(means, quats, scales, opacities, viewmats, Ks)
         C, N = viewmats.shape[0], means.shape[0]
@@ -333,13 +333,13 @@ class _ProjectFused(torch.autograd.Function):
         valid = np.empty((C, N), np.bool_)
         extents = np.empty((C, N, 2), dt)
         radii = np.empty((C, N), np.int32)
-        project_fwd(*arrs, width, height, near_t, far_t, RC.EPS2D, RC.FOV_CLAMP, RC.ALPHA_MIN,
+        project_fwd(*arrs, width, height, near_t, far_t, eps2d, RC.FOV_CLAMP, RC.ALPHA_MIN,
                     means2d, conics, depths, valid, extents, radii)
         # saved through autograd, not as numpy views: an in-place change of an input before
         # backward then raises, as it does for the PyTorch projection, instead of silently
         # differentiating at the changed values
         ctx.save_for_backward(means, quats, scales, viewmats, Ks)  # opacities: forward only
-        ctx.frame = (width, height, near_t, far_t)
+        ctx.frame = (width, height, near_t, far_t, eps2d)
         ctx.dtype = means.dtype
         out = tuple(torch.from_numpy(a) for a in (means2d, conics, depths, valid, extents,
                                                   radii))
@@ -350,7 +350,7 @@ class _ProjectFused(torch.autograd.Function):
     def backward(ctx: Any, g_means2d: torch.Tensor | None, g_conics: torch.Tensor | None,
                  g_depths: torch.Tensor | None, *_non_differentiable: Any
                  ) -> tuple[torch.Tensor | None, ...]:
-        width, height, near, far = ctx.frame
+        width, height, near, far, eps2d = ctx.frame
         means, quats, scales, viewmats, Ks = _kernel_arrays(*ctx.saved_tensors)
         C, N = viewmats.shape[0], means.shape[0]
         dt = means.dtype
@@ -361,7 +361,7 @@ class _ProjectFused(torch.autograd.Function):
         g_quats = np.empty((N, 4), dt)
         g_scales = np.empty((N, 3), dt)
         parts = np.zeros(((N + CHUNK - 1) // CHUNK, C, 12), np.float64)
-        project_bwd(means, quats, scales, viewmats, Ks, width, height, near, far, RC.EPS2D,
+        project_bwd(means, quats, scales, viewmats, Ks, width, height, near, far, eps2d,
                     RC.FOV_CLAMP, cot(g_means2d, (C, N, 2)), cot(g_conics, (C, N, 3)),
                     cot(g_depths, (C, N)), g_means, g_quats, g_scales, parts)
         g_view = np.zeros((C, 4, 4), dt)
@@ -372,19 +372,21 @@ class _ProjectFused(torch.autograd.Function):
         return (torch.from_numpy(g_means) if need[0] else None,
                 torch.from_numpy(g_quats) if need[1] else None,
                 torch.from_numpy(g_scales) if need[2] else None, None,
-                torch.from_numpy(g_view) if need[4] else None, None, None, None, None, None)
+                torch.from_numpy(g_view) if need[4] else None, None, None, None, None, None,
+                None)
 
 
 def project_gaussians_fused(means: torch.Tensor, quats: torch.Tensor, scales: torch.Tensor,
                             opacities: torch.Tensor, viewmats: torch.Tensor,
                             Ks: torch.Tensor,  # gsplat's name
                             width: int, height: int, near_plane: float = RC.NEAR_PLANE,
-                            far_plane: float = RC.FAR_PLANE) -> Projected:
+                            far_plane: float = RC.FAR_PLANE, eps2d: float = RC.EPS2D
+                            ) -> Projected:
     """:func:`~egs_bench.render.projection.project_gaussians` (same arguments and outputs) on
     CPU tensors, as two numba kernels; the dtype of ``means`` is the output dtype."""
     if means.device.type != "cpu":
         raise ValueError("the fused projection needs CPU tensors")
     means2d, conics, depths, valid, extents, radii = _ProjectFused.apply(
         means, quats, scales, opacities, viewmats, Ks, width, height, float(near_plane),
-        float(far_plane))
+        float(far_plane), float(eps2d))
     return Projected(means2d, conics, depths, valid, extents, radii)

@@ -73,6 +73,7 @@ def project_gaussians(
     height: int,
     near_plane: float = RC.NEAR_PLANE,
     far_plane: float = RC.FAR_PLANE,
+    eps2d: float = RC.EPS2D,
 ) -> Projected:
     """Project N Gaussians into C cameras.
 
@@ -121,9 +122,9 @@ def project_gaussians(
                       j11[..., None] * r1 + j12[..., None] * r2], -2)  # [C,N,2,3]
     v = (jr[..., :, :, None] * m_w[None, :, None, :, :]).sum(-2)  # [C,N,2,3]
     v0, v1 = v.unbind(-2)
-    a2 = (v0 * v0).sum(-1) + RC.EPS2D
+    a2 = (v0 * v0).sum(-1) + eps2d
     b2 = (v0 * v1).sum(-1)
-    c2 = (v1 * v1).sum(-1) + RC.EPS2D
+    c2 = (v1 * v1).sum(-1) + eps2d
     det = a2 * c2 - b2 * b2
     valid = in_range & (det > 0) & torch.isfinite(det)
     det_s = torch.where(valid, det, torch.ones_like(det))

@@ -9,6 +9,7 @@ import torch
 
 from egs_bench.render import constants as RC
 from egs_bench.render.projection import project_gaussians
+from egs_bench.render.work import active, book
 
 Backend = Literal["auto", "numba", "reference", "gsplat"]
 
@@ -112,11 +113,12 @@ def rasterize(
     backgrounds: torch.Tensor | None = None,
     backend: Backend = "auto",
     visibility: bool = True,
+    eps2d: float = RC.EPS2D,
 ) -> RasterResult:
     """Render N 3-D Gaussians into C pinhole cameras, differentiably.
 
     The arguments mirror ``gsplat.rasterization`` (v1.5.3) with ``render_mode="RGB+D"``,
-    ``rasterize_mode="classic"``, ``packed=False`` and ``eps2d=0.3``. Gradients flow to
+    ``rasterize_mode="classic"`` and ``packed=False``. Gradients flow to
     ``means``, ``quats``, ``scales``, ``opacities``, ``colors``, ``viewmats`` and
     ``backgrounds`` (not ``Ks``). The per-pixel rule is in :mod:`egs_bench.render.constants`.
 
@@ -137,6 +139,9 @@ def rasterize(
             kernels), "reference" (dense PyTorch oracle, tiny images only) or "gsplat".
         visibility: return which Gaussians each camera "touched" (keyframe decisions need
             it; the optimisation loops pass False: on gsplat it is a second pass).
+        eps2d: pixels^2 added to every 2-D covariance (gsplat's low-pass dilation, 0.3 by
+            default); an image rendered at ``s`` x the resolution keeps the same dilation in
+            scene units with ``0.3 s^2``.
 
     Returns:
         A :class:`RasterResult`.
@@ -154,12 +159,15 @@ def rasterize(
     """
     _check_inputs(means, quats, scales, opacities, colors, viewmats, Ks, width, height)
     name = resolve_backend(backend, means.device)
+    C = viewmats.shape[0]
+    book(active(), calls=1, cameras=C, pixels=C * width * height,
+         blends_counted=name == "numba")
     if name == "gsplat":
         from egs_bench.render.gsplat_backend import rasterize_gsplat
 
         rgb, depth, alpha, vis, radii, means2d, depths = rasterize_gsplat(
             means, quats, scales, opacities, colors, viewmats, Ks, width, height,
-            near_plane, far_plane, visibility,
+            near_plane, far_plane, visibility, eps2d,
         )
     else:
         # reference: the PyTorch statement of the projection; numba: its fused kernels
@@ -168,7 +176,8 @@ def rasterize(
         else:
             from egs_bench.render.numba_projection import project_gaussians_fused as project
         proj = project(
-            means, quats, scales, opacities, viewmats, Ks, width, height, near_plane, far_plane
+            means, quats, scales, opacities, viewmats, Ks, width, height, near_plane, far_plane,
+            eps2d,
         )
         if name == "reference":
             from egs_bench.render.reference import composite_dense

@@ -142,11 +142,27 @@ class RunTiming:
         total_wall_s: wall time of the whole SLAM loop (tracking + mapping), seconds.
         per_frame_s: wall time per processed frame, shape [N], seconds.
         render_fps: rendering speed of the final map (frames per second), if measured.
+        compile_s: kernel compilation (or cache loading) before the loop, seconds; None in
+            runs that did not record it.
     """
 
     total_wall_s: float
     per_frame_s: np.ndarray
     render_fps: float | None
+    compile_s: float | None = None
+
+    @property
+    def init_s(self) -> float | None:
+        """Frame 0's wall time: the map's initialisation (None without frames)."""
+        return float(self.per_frame_s[0]) if len(self.per_frame_s) else None
+
+    @property
+    def fps_after_init(self) -> float | None:
+        """Frames per second over frames 1.. (tracking and mapping, the steady state);
+        None with fewer than two frames."""
+        rest = float(np.sum(self.per_frame_s[1:]))
+        return (len(self.per_frame_s) - 1) / rest if len(self.per_frame_s) > 1 and rest > 0 \
+            else None
 
     @property
     def fps(self) -> float:
@@ -755,20 +771,27 @@ class RunFolder:
         total_wall_s: float,
         per_frame_s: Sequence[float] | np.ndarray,
         render_fps: float | None = None,
+        compile_s: float | None = None,
     ) -> None:
         """Write ``timing.json`` (atomically).
 
         Args:
-            total_wall_s: wall time of the SLAM loop, seconds.
-            per_frame_s: wall time per processed frame, [N] seconds.
+            total_wall_s: wall time of the SLAM loop, seconds (kernel compilation excluded).
+            per_frame_s: wall time per processed frame, [N] seconds (frame 0: the map's
+                initialisation).
             render_fps: rendering speed of the final map (renders per second), if measured.
+            compile_s: seconds spent compiling or loading kernels before the loop.
         """
         per_frame = np.asarray(per_frame_s, dtype=np.float64)
+        timing = RunTiming(float(total_wall_s), per_frame, render_fps, compile_s)
         data = {
             "total_wall_s": float(total_wall_s),
             "frames": int(len(per_frame)),
             "fps": float(len(per_frame) / total_wall_s) if total_wall_s > 0 else None,
             "render_fps": float(render_fps) if render_fps is not None else None,
+            "compile_s": float(compile_s) if compile_s is not None else None,
+            "init_s": timing.init_s,
+            "fps_after_init": timing.fps_after_init,
             "per_frame_s": [float(v) for v in per_frame],
         }
         write_text_atomic(self.path / TIMING_FILE, json.dumps(data, indent=1) + "\n")
@@ -783,7 +806,9 @@ class RunFolder:
             total = float(data["total_wall_s"])
             per_frame = np.asarray(data.get("per_frame_s", []), dtype=np.float64)
             fps = data.get("render_fps")
-            return RunTiming(total, per_frame, float(fps) if fps is not None else None)
+            compile_s = data.get("compile_s")
+            return RunTiming(total, per_frame, float(fps) if fps is not None else None,
+                             float(compile_s) if compile_s is not None else None)
         except (KeyError, TypeError, ValueError) as exc:
             raise InputError(path, f"malformed timing ({exc})") from None
 

@@ -156,3 +156,13 @@ def with_options(method: Method, options: dict[str, Any]) -> Method:
         raise ConfigError(f"--set applies to methods with a SLAM configuration; {method.name!r} "
                           "has none")
     return configure(options)
+
+
+def describe_run(method: Method, sequence: Sequence, *, preset: str, device: str,
+                 seed: int) -> str:
+    """The first line ``egs-bench run`` prints: what the method says it will do
+    (``describe``), or its name, the requested preset and device and the seed."""
+    describe = getattr(method, "describe", None)
+    if callable(describe):
+        return str(describe(sequence, preset=preset, device=device, seed=seed))
+    return f"{method.name} on {sequence.name}: preset {preset}, device {device}, seed {seed}"

@@ -30,6 +30,7 @@ CrfInit = Literal["linear", "srgb"]
 MotionModel = Literal["constant-position", "constant-velocity"]
 Backend = Literal["auto", "numba", "reference", "gsplat"]
 MappingMode = Literal["sequential", "concurrent"]
+InsertionRule = Literal["all", "uncovered"]
 
 
 @dataclass(frozen=True)
@@ -171,6 +172,19 @@ class BudgetConfig:
     lr_colors: float = 0.0025 * 0.28209479  # (MonoGS f_dc lr expressed on colours)
     lr_opacity: float = 0.05            # (MonoGS)
     lr_scales: float = 0.001 * 6        # (MonoGS, times its spatial_lr_scale 6)
+    # Coarse-to-fine (egs_bench/slam/levels.py): the first fraction of each tracking call's and
+    # mapping round's iterations render at coarse_scale x the internal resolution, about
+    # scale^2 of a fine iteration's blends; the last iteration is always fine.
+    tracking_coarse_scale: float = 1.0     # coarse level of tracking (1.0 = off)
+    tracking_coarse_fraction: float = 0.0  # share of tracking iterations at that level
+    mapping_coarse_scale: float = 1.0      # coarse level of mapping rounds (1.0 = off)
+    mapping_coarse_fraction: float = 0.0   # share of mapping iterations at that level
+    # Which pixels of a new keyframe may become Gaussians (1 in pcd_downsample of them):
+    # "all" valid ones (MonoGS), or "uncovered": rendered opacity below insertion_alpha or
+    # expected depth off by more than insertion_depth_error x the measured depth.
+    insertion: InsertionRule = "all"
+    insertion_alpha: float = 0.5           # "uncovered": opacity below which a pixel is new
+    insertion_depth_error: float = 0.1     # "uncovered": relative depth error that is new
 
 
 @dataclass(frozen=True)
@@ -374,6 +388,11 @@ RANGES: dict[str, Bounds] = {
     "budget.tracking_lr_final": Bounds(low=0, high=1, low_open=True),
     **_each("budget", "lr_rot lr_trans lr_means lr_colors lr_opacity lr_scales", _POSITIVE),
     "budget.converged_threshold": _NON_NEGATIVE,
+    **_each("budget", "tracking_coarse_scale mapping_coarse_scale",
+            Bounds(low=0, high=1, low_open=True)),
+    **_each("budget", "tracking_coarse_fraction mapping_coarse_fraction insertion_alpha",
+            _FRACTION),
+    "budget.insertion_depth_error": _POSITIVE,
 }
 
 

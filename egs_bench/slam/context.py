@@ -7,7 +7,7 @@ from one :class:`SlamContext` instead of a dozen positional arguments each.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import torch
@@ -16,10 +16,13 @@ from egs_bench.datasets.sequence_view import SequenceView
 from egs_bench.geometry import Intrinsics
 from egs_bench.render import GaussianMap
 from egs_bench.render.gaussian_map import FrozenGaussians
+from egs_bench.render.work import counting
 from egs_bench.slam.config import SlamConfig
 from egs_bench.slam.frames import internal_intrinsics
+from egs_bench.slam.levels import Level, level_edge_blocks, level_eps2d
 from egs_bench.slam.loss_terms import LOSS_TERMS, LossTerm
 from egs_bench.slam.render_model import render_views
+from egs_bench.slam.work import Phase, WorkLedger
 
 
 @dataclass(frozen=True)
@@ -38,6 +41,7 @@ class SlamContext:
             microseconds.
         loss_terms: the terms of the tracking and mapping loss
             (:mod:`egs_bench.slam.loss_terms`).
+        work: the rendering work of the run, by frame and phase (every :meth:`render`).
     """
 
     cfg: SlamConfig
@@ -49,6 +53,8 @@ class SlamContext:
     exposure_starts_us: np.ndarray
     exposure_ends_us: np.ndarray
     loss_terms: tuple[LossTerm, ...] = LOSS_TERMS
+    work: WorkLedger = field(default_factory=WorkLedger)
+    _levels: dict[float, Level] = field(default_factory=dict)
 
     @classmethod
     def build(cls, seq: SequenceView, cfg: SlamConfig, device: str | torch.device = "cpu",
@@ -77,9 +83,25 @@ class SlamContext:
         """Frame ``i``'s exposure window ``(t_start_us, t_end_us)``."""
         return int(self.exposure_starts_us[i]), int(self.exposure_ends_us[i])
 
+    def level(self, scale: float) -> Level:
+        """The coarse-to-fine level at ``scale`` x the internal resolution (1.0: internal)."""
+        if scale not in self._levels:
+            if scale >= 1.0:
+                cam, K = self.cam, self.K
+            else:
+                cam = internal_intrinsics(self.cam, scale)
+                K = torch.tensor(cam.K, dtype=torch.float32, device=self.device)
+            self._levels[scale] = Level(min(scale, 1.0), cam, K,
+                                        level_eps2d(min(scale, 1.0)),
+                                        level_edge_blocks(self.cfg.budget.edge_blocks, scale))
+        return self._levels[scale]
+
     def render(self, gmap: GaussianMap | FrozenGaussians, viewmats: torch.Tensor | np.ndarray,
-               *, visibility: bool = False):
-        """Render world-to-camera ``viewmats`` [C, 4, 4] at the internal resolution (see
-        :func:`~egs_bench.slam.render_model.render_views`)."""
-        return render_views(gmap, viewmats, self.K, self.width, self.height, self.cfg,
-                            visibility=visibility)
+               *, phase: Phase, scale: float = 1.0, visibility: bool = False):
+        """Render world-to-camera ``viewmats`` [C, 4, 4] at ``scale`` x the internal
+        resolution (see :func:`~egs_bench.slam.render_model.render_views`), booking the work
+        into ``phase`` of the current frame (:attr:`work`)."""
+        lvl = self.level(scale)
+        with counting(self.work.record(phase)):
+            return render_views(gmap, viewmats, lvl.K, lvl.cam.width, lvl.cam.height,
+                                self.cfg, visibility=visibility, eps2d=lvl.eps2d)

@@ -97,19 +97,52 @@ def load_frame(seq: SequenceView, i: int, cam: Intrinsics, cfg: SlamConfig, want
             event_maps = torch.from_numpy(maps).to(device)
     else:
         fr = np.array([1.0])
+    events = _Exposure(np.asarray(fr, dtype=np.float64), event_maps, n_events)
+    return _observation(i, rgb, depth, events, cfg, cfg.budget.edge_blocks, device)
+
+
+@dataclass(frozen=True)
+class _Exposure:
+    """What a frame's observation holds about its exposure (see :class:`FrameObs`)."""
+
+    fractions: np.ndarray
+    event_maps: torch.Tensor | None
+    n_events: int
+
+
+def _observation(i: int, rgb: np.ndarray, depth: np.ndarray, exposure: _Exposure,
+                 cfg: SlamConfig, edge_blocks: int | None, device: torch.device) -> FrameObs:
+    """A :class:`FrameObs` from host images at their resolution: rgb [H, W, 3] float32,
+    depth [H, W] metres; the masks follow from them."""
     rgb_t = torch.from_numpy(np.ascontiguousarray(rgb)).to(device)
     depth_t = torch.from_numpy(np.ascontiguousarray(depth)).to(device)
     edge = None
     if cfg.loss.use_edge_mask:
-        edge = torch.from_numpy(edge_mask(rgb, cfg.loss.edge_threshold,
-                                          cfg.budget.edge_blocks)).to(device)
+        edge = torch.from_numpy(edge_mask(rgb, cfg.loss.edge_threshold, edge_blocks)).to(device)
     return FrameObs(
         index=i, rgb=rgb_t, depth=depth_t,
         rgb_mask=rgb_boundary_mask(rgb_t, cfg.loss.rgb_boundary_threshold),
         depth_mask=depth_valid_mask(depth_t), edge_weight=edge,
-        fractions=np.asarray(fr, dtype=np.float64),
-        event_maps=event_maps, n_events=n_events,
+        fractions=exposure.fractions, event_maps=exposure.event_maps,
+        n_events=exposure.n_events,
     )
+
+
+def coarse_observation(obs: FrameObs, cam: Intrinsics, cfg: SlamConfig,
+                       edge_blocks: int | None) -> FrameObs:
+    """``obs`` at the lower resolution of ``cam``, made the way the internal resolution is
+    made from the sequence's: colour and event maps area-averaged, depth averaged over valid
+    pixels only, the masks recomputed (the edge mask on a grid of ``edge_blocks``)."""
+    w, h = cam.width, cam.height
+    rgb = _area_resize(obs.rgb.cpu().numpy(), w, h)
+    depth = _resize_depth(obs.depth.cpu().numpy(), w, h)
+    maps = None
+    if obs.event_maps is not None:
+        host = obs.event_maps.cpu().numpy()
+        maps = torch.from_numpy(np.stack([_area_resize(m, w, h) for m in host])).to(
+            obs.event_maps.device)
+    return _observation(obs.index, rgb, depth, _Exposure(obs.fractions, maps, obs.n_events),
+                        cfg, edge_blocks, obs.rgb.device)
 
 
 @dataclass

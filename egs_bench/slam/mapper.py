@@ -22,8 +22,9 @@ from egs_bench.render import GaussianMap
 from egs_bench.slam.context import SlamContext
 from egs_bench.slam.crf import CameraResponse
 from egs_bench.slam.exposure import exposure_path
-from egs_bench.slam.frames import FrameObs, FrameState
+from egs_bench.slam.frames import FrameObs, FrameState, coarse_observation
 from egs_bench.slam.host_adam import HostAdam
+from egs_bench.slam.levels import coarse_iterations
 from egs_bench.slam.render_model import (
     LossTargets,
     blur_loss,
@@ -62,6 +63,7 @@ class Mapper:
         cfg = ctx.cfg
         self.iteration = 0
         self.targets: dict[int, LossTargets] = {}
+        self.coarse_targets: dict[int, LossTargets] = {}
         self.crf_opt = None
         crf_params = list(crf.parameters())
         if crf_params:
@@ -80,12 +82,18 @@ class Mapper:
             {"params": [g.quats], "lr": c.mapping.lr_quats},
         ], eps=1e-15, fused=True)
 
-    def _targets(self, k: int, obs: FrameObs) -> LossTargets:
-        if k not in self.targets:
-            self.targets[k] = prepare_targets(obs, self.cfg, self.ctx.theta, tracking=False,
-                                              use_events=self.cfg.method.event_mapping,
-                                              terms=self.ctx.loss_terms)
-        return self.targets[k]
+    def _targets(self, k: int, obs: FrameObs, coarse: bool = False) -> LossTargets:
+        """Keyframe ``k``'s mapping targets at the internal level, or at the coarse level of
+        ``budget.mapping_coarse_scale``; prepared once per keyframe."""
+        cache = self.coarse_targets if coarse else self.targets
+        if k not in cache:
+            if coarse:
+                lvl = self.ctx.level(self.cfg.budget.mapping_coarse_scale)
+                obs = coarse_observation(obs, lvl.cam, self.cfg, lvl.edge_blocks)
+            cache[k] = prepare_targets(obs, self.cfg, self.ctx.theta, tracking=False,
+                                       use_events=self.cfg.method.event_mapping,
+                                       terms=self.ctx.loss_terms)
+        return cache[k]
 
     def _pick_views(self, window: list[int], all_keyframes: list[int]) -> list[int]:
         """The window plus ``n_random_kfs`` random older keyframes, optionally subsampled to
@@ -211,7 +219,7 @@ class Mapper:
             views = exposure_path(st.pose0_cw, st.pose1_cw, observations[k].fractions)[0]
             exp_ab = to_device(np.array([st.exp_a, st.exp_b]), like).view(1, 2) \
                 if cfg.method.exposure_compensation else None
-            res = self.ctx.render(self.gmap, views)
+            res = self.ctx.render(self.gmap, views, phase="refinement")
             total = (blur_loss(res, self._targets(k, observations[k]), self.crf, exp_ab, cfg,
                                tracking=False, eps=self.ctx.eps)
                      + mapping_regulariser(self.gmap, cfg))
@@ -261,6 +269,9 @@ class MappingRound:
         self.window, self.all_keyframes = inputs.window, inputs.all_keyframes
         self.iterations, self.initial, self.report = iterations, initial, report
         self.report_every = max(1, iterations // 50)
+        budget = mapper.cfg.budget
+        self.n_coarse = coarse_iterations(iterations, budget.mapping_coarse_scale,
+                                          budget.mapping_coarse_fraction)
         self.opt = mapper._gaussian_optimizer()
         self.plan = mapper._host_plan(self.window, initial, fixed_end_pose)
         self.use_exposure = mapper.cfg.method.exposure_compensation and not initial
@@ -303,8 +314,10 @@ class MappingRound:
             viewmats.requires_grad_()
         if free_exposure and exp_ab is not None:
             exp_ab.requires_grad_()
-        targets = stack_targets([mapper._targets(k, observations[k]) for k in views])
-        res = mapper.ctx.render(mapper.gmap, viewmats)
+        coarse = self.done < self.n_coarse
+        targets = stack_targets([mapper._targets(k, observations[k], coarse) for k in views])
+        res = mapper.ctx.render(mapper.gmap, viewmats, phase="init" if initial else "mapping",
+                                scale=cfg.budget.mapping_coarse_scale if coarse else 1.0)
         total = blur_loss(res, targets, mapper.crf, exp_ab, cfg, tracking=False, eps=mapper.ctx.eps)
         if not initial:
             total = total + mapping_regulariser(mapper.gmap, cfg)

@@ -53,6 +53,25 @@ class ConfiguredSlamMethod:
         configuration)."""
         return dataclasses.replace(self, options={**self.options, **options})
 
+    def describe(self, sequence: Sequence, *, preset: str = "auto", device: str = "auto",
+                 seed: int = 0) -> str:
+        """One line saying what :meth:`run` with these arguments will do: the method, the
+        preset and device ``auto`` resolves to, the processing resolution (and its share of
+        the sequence's) and the seed."""
+        from egs_bench.slam.config import resolve_device, resolve_preset
+        from egs_bench.slam.frames import internal_intrinsics
+
+        device = resolve_device(device)
+        preset = resolve_preset(preset, device)
+        cfg = self.config(preset, sequence.meta)
+        full = sequence.intrinsics
+        cam = internal_intrinsics(full, cfg.budget.resolution_scale)
+        size = f"{cam.width}x{cam.height}"
+        if (cam.width, cam.height) != (full.width, full.height):
+            size += f" (reduced from the sequence's {full.width}x{full.height})"
+        return (f"{self.name} on {sequence.name}: preset {preset}, device {device}, "
+                f"processing at {size}, seed {seed}")
+
     def run(self, sequence: Sequence, out: Path, *, preset: str = "auto", device: str = "auto",
             seed: int = 0, max_frames: int | None = None, progress: bool = True,
             overwrite: bool = False) -> RunFolder:

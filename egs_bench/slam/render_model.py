@@ -20,6 +20,7 @@ import torch
 
 from egs_bench.color import LUMA_BT601
 from egs_bench.render import GaussianMap
+from egs_bench.render import constants as RC
 from egs_bench.render.gaussian_map import FrozenGaussians
 from egs_bench.slam.config import SlamConfig
 from egs_bench.slam.frames import FrameObs
@@ -83,15 +84,16 @@ def stack_targets(targets: list[LossTargets]) -> LossTargets:
 
 def render_views(gmap: GaussianMap | FrozenGaussians, viewmats: torch.Tensor | np.ndarray,
                  K: torch.Tensor, width: int, height: int, cfg: SlamConfig, *,
-                 visibility: bool = False):
+                 visibility: bool = False, eps2d: float = RC.EPS2D):
     """Render world-to-camera ``viewmats`` [C, 4, 4] (any float dtype, tensor or array) with the
-    map's dtype and device; returns the RasterResult (``visibility`` only when asked)."""
+    map's dtype and device; returns the RasterResult (``visibility`` only when asked;
+    ``eps2d``: the rasteriser's 2-D dilation, pixels^2)."""
     if isinstance(viewmats, np.ndarray):
         viewmats = torch.from_numpy(viewmats)
     vm = viewmats.to(device=gmap.device, dtype=gmap.dtype)
     ks = K.to(gmap.dtype).expand(vm.shape[0], 3, 3)
     return gmap.render(vm, ks, width, height, near_plane=cfg.mapping.near_plane,
-                       backend=cfg.runtime.backend, visibility=visibility)
+                       backend=cfg.runtime.backend, visibility=visibility, eps2d=eps2d)
 
 
 def _rendered(res, targets: LossTargets, crf: Callable[[torch.Tensor], torch.Tensor],

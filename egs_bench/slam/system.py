@@ -112,12 +112,17 @@ class SlamSystem:
         """Frame ``i``'s observations at the internal resolution."""
         return load_frame(self.seq, i, self.ctx.cam, self.cfg, self.want_events, self.device)
 
-    def insert(self, obs: FrameObs, state: FrameState, downsample: int, kf_id: int) -> int:
-        """Add Gaussians back-projected from ``obs``'s depth at ``state``'s ``T_tau``; returns
-        how many."""
+    def insert(self, obs: FrameObs, state: FrameState, downsample: int, kf_id: int,
+               candidates: torch.Tensor | None = None) -> int:
+        """Add Gaussians back-projected from ``obs``'s depth at ``state``'s ``T_tau``, from
+        the pixels of ``candidates`` (bool [H, W]; None: every valid pixel); returns how
+        many."""
         with torch.no_grad():
             lin = self.crf.inverse(obs.rgb.to(torch.float32)).clamp_min(0.0)
-        depth = (obs.depth * obs.rgb_mask).cpu().numpy()  # MonoGS zeroes near-black pixels
+        masked = obs.depth * obs.rgb_mask  # MonoGS zeroes near-black pixels
+        if candidates is not None:
+            masked = masked * candidates
+        depth = masked.cpu().numpy()
         pose_wc = invert_pose(state.pose1_cw)
         return self.gmap.add_from_depth(lin.cpu().numpy(), depth, self.ctx.cam, pose_wc,
                                         downsample=downsample,
@@ -126,7 +131,18 @@ class SlamSystem:
 
     @torch.no_grad()
     def _end_render(self, state: FrameState):
-        return self.ctx.render(self.gmap, state.pose1_cw[None], visibility=True)
+        return self.ctx.render(self.gmap, state.pose1_cw[None], phase="selection",
+                               visibility=True)
+
+    def _uncovered(self, obs: FrameObs, res) -> torch.Tensor | None:
+        """The pixels of a new keyframe that its render at ``T_tau`` (``res``) does not
+        explain yet (``budget.insertion = "uncovered"``), bool [H, W]; None: every pixel."""
+        b = self.cfg.budget
+        if b.insertion == "all":
+            return None
+        alpha, depth = res.alpha[0], res.expected_depth[0]
+        off = (depth - obs.depth).abs() > b.insertion_depth_error * obs.depth
+        return (alpha < b.insertion_alpha) | off
 
     def _visibility(self, state: FrameState) -> np.ndarray:
         return self._end_render(state).visibility[0].cpu().numpy()
@@ -252,7 +268,7 @@ class SlamSystem:
                                                                  kfs.poses_cw())
         if self.concurrent is not None:
             self.concurrent.finish_queued()  # an open round must not see the map change
-        self.insert(obs, state, self.cfg.budget.pcd_downsample, i)
+        self.insert(obs, state, self.cfg.budget.pcd_downsample, i, self._uncovered(obs, res))
         if self.concurrent is not None:
             self.concurrent.submit(self.mapper.begin_round(  # type: ignore[attr-defined]
                 kfs.states, kfs.observations, kfs.window, kfs.ids,
@@ -292,6 +308,7 @@ class SlamSystem:
             raise InputError(self.seq.path, "no frames to process")
         t_wall = time.perf_counter()
         self.states = []  # grows frame by frame: what an interrupted run got done
+        self.ctx.work.begin_frame(0)
         kfs = self._kfs = self._initialise(phase("map init"))
         result = SlamResult(self.states, kfs.ids, self.gmap, self.crf)
         result.reports.append(FrameReport(0, float("nan"), self.cfg.budget.init_iters, True,
@@ -303,6 +320,7 @@ class SlamSystem:
         finally:
             if self.concurrent is not None:
                 self.concurrent.cancel()
+        self.ctx.work.end_frames()
         self._final_refinement(kfs)
         result.keyframes = kfs.ids
         return result
@@ -315,6 +333,7 @@ class SlamSystem:
         for i in range(1, n_frames):
             raise_if_interrupted()  # one whose exception was swallowed: stop within a frame
             t_frame = time.perf_counter()
+            self.ctx.work.begin_frame(i)
             obs = self.obs(i)
             tr, diverged = self._track(i, obs, recent_losses, result.divergences)
             if math.isfinite(tr.loss):

@@ -29,8 +29,9 @@ from egs_bench.slam.context import SlamContext
 from egs_bench.slam.convergence import ConvergenceTest
 from egs_bench.slam.crf import CameraResponse
 from egs_bench.slam.exposure import exposure_path
-from egs_bench.slam.frames import FrameObs, FrameState
+from egs_bench.slam.frames import FrameObs, FrameState, coarse_observation
 from egs_bench.slam.host_adam import HostAdam
+from egs_bench.slam.levels import coarse_iterations
 from egs_bench.slam.render_model import blur_loss, prepare_targets
 
 
@@ -128,6 +129,16 @@ def track_frame(ctx: SlamContext, gmap: GaussianMap, crf: CameraResponse,
     adam = HostAdam(lr, decay)
     targets = prepare_targets(obs, cfg, ctx.theta, tracking=True,
                               use_events=cfg.method.event_tracking, terms=ctx.loss_terms)
+    # Coarse-to-fine: the first n_coarse iterations at the coarse level (budget.tracking_coarse_*),
+    # which only moves the pose towards the basin; the stopping rules watch the fine ones.
+    coarse_scale = cfg.budget.tracking_coarse_scale
+    n_coarse = coarse_iterations(n_iters, coarse_scale, cfg.budget.tracking_coarse_fraction)
+    coarse_targets = None
+    if n_coarse:
+        lvl = ctx.level(coarse_scale)
+        coarse_targets = prepare_targets(
+            coarse_observation(obs, lvl.cam, cfg, lvl.edge_blocks), cfg, ctx.theta,
+            tracking=True, use_events=cfg.method.event_tracking, terms=ctx.loss_terms)
     curve = crf.frozen()
     scene = gmap.frozen()  # the map is fixed while tracking: activate it once
     like = obs.rgb  # dtype and device of the copies
@@ -151,8 +162,10 @@ def track_frame(ctx: SlamContext, gmap: GaussianMap, crf: CameraResponse,
         packed = to_device(np.r_[views.ravel(), exposure] if use_exposure else views.ravel(), like)
         viewmats = packed[:16 * m].view(m, 4, 4).requires_grad_()
         exp_ab = packed[16 * m:].view(1, 2).requires_grad_() if use_exposure else None
-        res = ctx.render(scene, viewmats)
-        total = blur_loss(res, targets, curve, exp_ab, cfg, tracking=True, eps=ctx.eps)
+        coarse = step_i <= n_coarse
+        res = ctx.render(scene, viewmats, phase="tracking", scale=coarse_scale if coarse else 1.0)
+        total = blur_loss(res, coarse_targets if coarse and coarse_targets else targets, curve,
+                          exp_ab, cfg, tracking=True, eps=ctx.eps)
         total.backward()
         grads = [flat_grad(viewmats)] + ([flat_grad(exp_ab)] if exp_ab is not None else [])
         host = torch.cat([*grads, total.detach().reshape(1)]).cpu().numpy().astype(np.float64)
@@ -171,6 +184,8 @@ def track_frame(ctx: SlamContext, gmap: GaussianMap, crf: CameraResponse,
         step_norm = float(np.linalg.norm(steps, axis=-1).max())
         if request.trace:
             trace.append((loss_val, step_norm, pose1.copy()))
+        if coarse:
+            continue
         if settled.update(loss_val, step_norm, pose1) or \
                 step_norm < cfg.budget.converged_threshold:
             converged = True

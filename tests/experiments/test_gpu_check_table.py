@@ -12,9 +12,15 @@ def test_table_lists_every_run_and_the_ones_left_out() -> None:
            "tracking_iterations_mean": 37.5, "ate_rmse_cm": 0.875, "psnr_db": 25.125}
     report = {"environment": {"device": "NVIDIA H200", "torch": "2.11", "gsplat": "1.5.3"},
               "sequence": {"name": "office1", "resolution": "448x256", "frames_used": 40},
-              "date": "2026-12-02", "runs": {"egs/sequential": run,
-                                             "egs/concurrent": {"skipped": "past --until-s"}}}
+              "date": "2026-12-02", "runs": {
+                  "egs/sequential": run,  # a report of the earlier layout: the paper preset
+                  "egs/cpu/sequential": {**run, "work_per_frame_after_frame0": {
+                      "pixels": 2_500_000.0}},
+                  "egs/paper/concurrent": {"skipped": "past --until-s"}}}
     lines = check.markdown_table(report).splitlines()
     assert lines[0].startswith("NVIDIA H200, torch 2.11, gsplat 1.5.3; office1 448x256, first 40")
-    assert lines[4] == "| egs | sequential | 0.50 | 0.80 | 12.3 | 1.25 | 37.5 | 0.88 | 25.12 |"
-    assert lines[5].startswith("| egs | concurrent | not run (past --until-s)")
+    assert lines[4] == ("| egs | paper | sequential | 0.50 | 0.80 | 12.3 | 1.25 | 37.5 | -- "
+                        "| 0.88 | 25.12 |")
+    assert lines[5] == ("| egs | cpu | sequential | 0.50 | 0.80 | 12.3 | 1.25 | 37.5 | 2.50 "
+                        "| 0.88 | 25.12 |")
+    assert lines[6].startswith("| egs | paper | concurrent | not run (past --until-s)")

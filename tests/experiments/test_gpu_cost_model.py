@@ -89,3 +89,29 @@ def test_a_run_folder_without_stats_is_one_line_naming_the_file(tmp_path: Path,
 def test_a_bad_constant_is_a_usage_error(capsys) -> None:
     assert cm.main(["--check", "--constant", "nope=1"]) == 2
     assert "--constant" in capsys.readouterr().err
+
+
+def test_level_share_follows_the_budget() -> None:
+    assert cm.level_share({}, "tracking") == 1.0
+    assert cm.level_share({"resolution_scale": 0.5}, "mapping") == pytest.approx(0.25)
+    coarse = {"resolution_scale": 1.0, "tracking_coarse_scale": 0.25,
+              "tracking_coarse_fraction": 0.75}
+    assert cm.level_share(coarse, "tracking") == pytest.approx(0.75 / 16 + 0.25)
+    assert cm.level_share(coarse, "mapping") == 1.0  # the other phase's levels do not count
+
+
+def test_pixel_scalings_bracket_a_reduced_resolution() -> None:
+    s = cm.paper_scale("egs", 25)
+    small = s.replace(tracking_pixel_share=0.25, mapping_pixel_share=0.25)
+    full = cm.predict(s).fps
+    assert cm.predict(small, scaling="cameras").fps == pytest.approx(full)
+    fast = cm.predict(small, scaling="pixels").fps
+    assert fast > 2 * full  # most of egs's time is per-camera rendering
+    with pytest.raises(cm.ConfigError):
+        cm.predict(small, scaling="tiles")
+
+
+def test_presets_table_labels_predictions(capsys) -> None:
+    assert cm.main(["--presets"]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith("| prediction") and "| egs, cpu | 300 |" in out

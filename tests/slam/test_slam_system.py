@@ -31,16 +31,6 @@ FAST = dict(resolution_scale=1.0, init_iters=20, tracking_iters=20, mapping_iter
             views_per_iter=2, kf_interval=2, pcd_downsample_init=2, pcd_downsample=4)
 
 
-@pytest.fixture(scope="session")
-def tiny_room(tmp_path_factory) -> Path:
-    """6 frames, 64x48, of the synthetic office (a 3-D room, unlike the plane): ~0.5 cm and
-    0.6 deg per frame, 20 ms exposure, events. Generation takes ~10 s on 2 cores."""
-    from egs_bench.datasets.synthetic import make_synthetic
-
-    return make_synthetic("office", tmp_path_factory.mktemp("room") / "office", frames=6,
-                          width=64, height=48, speed=0.4, seed=1, progress=False)
-
-
 QUIET = RunSettings(preset="cpu", progress=False)
 
 
@@ -463,7 +453,7 @@ def test_final_refinement_lowers_keyframe_loss_and_keeps_poses(tiny_sequence: Pa
         total = 0.0
         for k, s in states.items():
             views = exposure_path(s.pose0_cw, s.pose1_cw, obs[k].fractions)[0]
-            res = system.ctx.render(system.gmap, views)
+            res = system.ctx.render(system.gmap, views, phase="mapping")
             targets = prepare_targets(obs[k], cfg, system.ctx.theta, tracking=False,
                                       use_events=True)
             exp_ab = torch.tensor([[s.exp_a, s.exp_b]])

@@ -1,0 +1,179 @@
+"""The accuracy-per-work frontier: ATE, PSNR, SSIM and LPIPS against the rendering work per
+frame, from finished run folders (BENCHMARKS.md "Accuracy per work").
+
+Work is machine-independent (slam_stats.json's ``work`` section, egs_bench.render.work):
+Gaussian-pixel blends per frame after frame 0, forward plus backward. A run's budget label is
+the sweep setting in its folder name (``<method>__<setting>/seed<N>``), else its preset.
+
+    python benchmarks/frontier.py collect SWEEP_DIR... --out docs/notes/frontier_runs.csv
+    python benchmarks/frontier.py table docs/notes/frontier_runs.csv
+    python benchmarks/frontier.py figure docs/notes/frontier_runs.csv --out docs/images/frontier.png
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import statistics
+from collections import defaultdict
+from pathlib import Path
+
+COLUMNS = ("sequence", "method", "budget", "seed", "frames", "ate_cm", "psnr_db", "ssim",
+           "lpips", "blends_m_per_frame", "pixels_m_per_frame", "cameras_per_frame",
+           "gaussians", "keyframes", "s_per_frame_after_init")
+
+
+def _budget(run_dir: Path, config: dict) -> str:
+    name = run_dir.parent.name
+    return name.split("__", 1)[1] if "__" in name else str(config.get("preset", "?"))
+
+
+def run_row(run_dir: Path) -> dict | None:
+    """One CSV row of a finished, evaluated run folder (None when it lacks its metrics or work)."""
+    import yaml
+
+    metrics_path, stats_path = run_dir / "metrics.json", run_dir / "slam_stats.json"
+    if not metrics_path.is_file() or not stats_path.is_file():
+        return None
+    metrics = json.loads(metrics_path.read_text())
+    stats = json.loads(stats_path.read_text())
+    work = stats.get("work")
+    if not work:
+        return None
+    config = yaml.safe_load((run_dir / "config.yaml").read_text()) or {}
+    mean = work["per_frame_after_init"]
+    rendering, speed = metrics.get("rendering") or {}, metrics.get("speed") or {}
+    blends = (mean["blends_fwd"] or 0) + (mean["blends_bwd"] or 0)
+    after = speed.get("fps_after_init")
+    return {
+        "sequence": metrics["run"]["sequence"], "method": metrics["run"]["method"],
+        "budget": _budget(run_dir, config), "seed": config.get("seed"),
+        "frames": stats["frames"], "ate_cm": round(100 * metrics["ate"]["rmse_m"], 3),
+        "psnr_db": _round(rendering.get("psnr_db"), 2), "ssim": _round(rendering.get("ssim"), 3),
+        "lpips": _round(rendering.get("lpips"), 3),
+        "blends_m_per_frame": round(blends / 1e6, 2),
+        "pixels_m_per_frame": round(mean["pixels"] / 1e6, 3),
+        "cameras_per_frame": round(mean["cameras"], 1),
+        "gaussians": stats["gaussians"], "keyframes": stats["keyframes"],
+        "s_per_frame_after_init": _round(1 / after if after else None, 2),
+    }
+
+
+def _round(value, digits: int):
+    return None if value is None else round(float(value), digits)
+
+
+def collect(roots: list[Path], out: Path) -> list[dict]:
+    rows = []
+    for root in roots:
+        for stats in sorted(root.rglob("slam_stats.json")):
+            row = run_row(stats.parent)
+            if row is not None:
+                rows.append(row)
+    rows.sort(key=lambda r: (r["sequence"], r["method"], r["blends_m_per_frame"], r["seed"]))
+    out.parent.mkdir(parents=True, exist_ok=True)
+    with out.open("w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=COLUMNS)
+        writer.writeheader()
+        writer.writerows(rows)
+    return rows
+
+
+def read_rows(path: Path) -> list[dict]:
+    with path.open() as f:
+        return list(csv.DictReader(f))
+
+
+def groups(rows: list[dict]) -> dict[tuple[str, str, str], list[dict]]:
+    out: dict[tuple[str, str, str], list[dict]] = defaultdict(list)
+    for r in rows:
+        out[(r["sequence"], r["method"], r["budget"])].append(r)
+    return out
+
+
+def _spread(values: list[float], digits: int) -> str:
+    if not values:
+        return "n/a"
+    mean = statistics.fmean(values)
+    if len(values) == 1:
+        return f"{mean:.{digits}f}"
+    return f"{mean:.{digits}f} ± {(max(values) - min(values)) / 2:.{digits}f}"
+
+
+def table(rows: list[dict]) -> str:
+    """Markdown: per sequence, method and budget, mean ± half-range over the seeds."""
+    lines = ["| sequence | method | budget | seeds | blends / frame (M) | ATE cm | PSNR dB | "
+             "SSIM | LPIPS | Gaussians | s / frame |",
+             "|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    for (seq, method, budget), rs in sorted(groups(rows).items(), key=lambda kv: (
+            kv[0][0], kv[0][1], statistics.fmean(float(r["blends_m_per_frame"]) for r in kv[1]))):
+        def col(key: str, digits: int, rs: list[dict] = rs) -> str:
+            return _spread([float(r[key]) for r in rs if r[key] not in ("", None)], digits)
+        lines.append(f"| {seq} | {method} | {budget} | {len(rs)} | {col('blends_m_per_frame', 1)} "
+                     f"| {col('ate_cm', 2)} | {col('psnr_db', 2)} | {col('ssim', 3)} | "
+                     f"{col('lpips', 3)} | {col('gaussians', 0)} | "
+                     f"{col('s_per_frame_after_init', 2)} |")
+    return "\n".join(lines)
+
+
+def figure(rows: list[dict], out: Path) -> None:
+    """ATE and PSNR against blends per frame (log scale), one line per method and sequence,
+    each point a budget's mean over seeds with its seed range."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
+    by_line: dict[tuple[str, str], list] = defaultdict(list)
+    for (seq, method, budget), rs in groups(rows).items():
+        work = statistics.fmean(float(r["blends_m_per_frame"]) for r in rs)
+        by_line[(seq, method)].append((work, budget, rs))
+    for (seq, method), points in sorted(by_line.items()):
+        points.sort(key=lambda p: p[0])
+        for ax, key in zip(axes, ("ate_cm", "psnr_db"), strict=True):
+            xs = [p[0] for p in points]
+            vals = [[float(r[key]) for r in p[2] if r[key]] for p in points]
+            ys = [statistics.fmean(v) for v in vals]
+            err = [[y - min(v) for y, v in zip(ys, vals, strict=True)],
+                   [max(v) - y for y, v in zip(ys, vals, strict=True)]]
+            ax.errorbar(xs, ys, yerr=err, marker="o" if method == "egs" else "s", capsize=3,
+                        label=f"{method} · {seq}")
+            for x, y, p in zip(xs, ys, points, strict=True):
+                ax.annotate(p[1], (x, y), textcoords="offset points", xytext=(4, 4), fontsize=7)
+    for ax, label in zip(axes, ("ATE RMSE (cm)", "PSNR (dB)"), strict=True):
+        ax.set_xscale("log")
+        ax.set_xlabel("Gaussian-pixel blends per frame after frame 0 (millions, fwd + bwd)")
+        ax.set_ylabel(label)
+        ax.grid(alpha=0.3)
+    axes[1].legend(fontsize=7)
+    fig.suptitle("Accuracy per work (mean and range over seeds)")
+    fig.tight_layout()
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=110)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    sub = parser.add_subparsers(dest="cmd", required=True)
+    c = sub.add_parser("collect")
+    c.add_argument("roots", nargs="+", type=Path)
+    c.add_argument("--out", type=Path, required=True)
+    t = sub.add_parser("table")
+    t.add_argument("csv", type=Path)
+    f = sub.add_parser("figure")
+    f.add_argument("csv", type=Path)
+    f.add_argument("--out", type=Path, required=True)
+    args = parser.parse_args()
+    if args.cmd == "collect":
+        print(f"{len(collect(args.roots, args.out))} runs -> {args.out}")
+    elif args.cmd == "table":
+        print(table(read_rows(args.csv)))
+    else:
+        figure(read_rows(args.csv), args.out)
+        print(f"figure -> {args.out}")
+
+
+if __name__ == "__main__":
+    main()
