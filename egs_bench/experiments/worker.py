@@ -123,6 +123,10 @@ def decide(spec: RunSpec, force: bool = False, retry_failed: bool = False) -> De
     if not run_dir.exists():
         return Decision(RUN, "new")
     record = read_record(run_dir)
+    if record is None and (run_dir / SWEEP_RECORD_FILE).is_file():
+        return Decision(CONFLICT, f"{run_dir / SWEEP_RECORD_FILE}: unreadable (not a JSON "
+                                  "object: truncated or corrupt); the run folder is left "
+                                  "untouched (move it away or choose another --out)")
     if record is None or record.get("run_id") != spec.run_id:
         if run_dir.is_dir() and not any(run_dir.iterdir()):
             return Decision(RUN, "new")
