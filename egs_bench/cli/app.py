@@ -105,16 +105,17 @@ class EgsBenchGroup(TyperGroup):
         that detect the shell, so the shell named after them was ignored (the bash script was
         printed for zsh). The name is taken out of ``args`` and handed to typer's callback,
         which uses a shell given as text."""
+        flags = [p for p in self.params if p.name in ("show_completion", "install_completion")
+                 and getattr(p, "is_flag", False)]  # not flags: typer takes the shell itself
         shell = None
         for i, arg in enumerate(args[:-1]):
-            if arg in _COMPLETION_OPTIONS and args[i + 1] in _SHELLS:
+            if flags and arg in _COMPLETION_OPTIONS and args[i + 1] in _SHELLS:
                 shell = args.pop(i + 1)
                 break
-        for param in self.params:
-            if param.name in ("show_completion", "install_completion"):
-                callback = getattr(param, "_egs_bench_shell_free", param.callback)
-                param._egs_bench_shell_free = callback  # type: ignore[attr-defined]
-                param.callback = _naming_shell(callback, shell)
+        for param in flags:
+            callback = getattr(param, "_egs_bench_shell_free", param.callback)
+            param._egs_bench_shell_free = callback  # type: ignore[attr-defined]
+            param.callback = _naming_shell(callback, shell)
         return args
 
     def invoke(self, ctx: Context) -> Any:
