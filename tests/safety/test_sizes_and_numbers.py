@@ -74,6 +74,7 @@ def test_run_set_takes_exponent_notation(tiny_sequence, tmp_path, capsys):
     assert yaml.safe_load((out / "config.yaml").read_text())["slam"]["loss"]["lambda_d"] == 1e-3
 
 
+@pytest.mark.slow
 def test_sweep_set_takes_exponent_notation(room_sequence, tmp_path, capsys):
     sweep = tmp_path / "sweep.yaml"
     # written as a user types it: PyYAML reads this `1e-3` as the string "1e-3"
