@@ -20,6 +20,7 @@ reported as an :class:`~egs_bench.errors.InputError` naming it.
 from __future__ import annotations
 
 import contextlib
+import errno
 import fcntl
 import os
 import re
@@ -40,6 +41,50 @@ from egs_bench.interrupts import raise_if_interrupted
 #: a staging folder without an owner lock file older than this is considered abandoned
 _STAGING_GRACE_S = 60.0
 _OWNER_FILE = ".owner"
+
+#: what every writer says when the file system has no room left (errno ENOSPC or EDQUOT)
+DISK_FULL = "cannot write: the disk is full (no space left on device)"
+_DISK_FULL_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT})
+
+
+def is_disk_full(exc: BaseException) -> bool:
+    """Whether ``exc``, or an exception in its cause/context chain, is a file system without
+    room (``ENOSPC``, or ``EDQUOT`` for a full quota). HDF5 reports the errno only in its
+    message text (``errno = 28``)."""
+    seen: set[int] = set()
+    e: BaseException | None = exc
+    while e is not None and id(e) not in seen:
+        seen.add(id(e))
+        if isinstance(e, OSError) and (e.errno in _DISK_FULL_ERRNOS
+                                       or "errno = 28," in str(e)):
+            return True
+        e = e.__cause__ or e.__context__
+    return False
+
+
+@contextlib.contextmanager
+def naming_full_disk(path: str | Path, *, outermost: bool = False) -> Iterator[None]:
+    """Report a full disk met inside the block as an :class:`UnwritableOutputError` naming
+    ``path`` (the output being written), instead of an ``OSError`` that names no file.
+
+    Args:
+        path: the output the block writes.
+        outermost: also rename a full disk already reported for a file inside ``path``'s
+            hidden staging folder, which the user never sees (:func:`atomic_dir`).
+
+    Raises:
+        UnwritableOutputError: the block failed because the disk (or quota) is full.
+    """
+    try:
+        yield
+    except UnwritableOutputError as exc:
+        if outermost and exc.problem == DISK_FULL:
+            raise UnwritableOutputError(path, DISK_FULL) from exc
+        raise
+    except OSError as exc:
+        if is_disk_full(exc):
+            raise UnwritableOutputError(path, DISK_FULL) from exc
+        raise
 
 
 def read_text(path: str | Path, what: str = "file") -> str:
@@ -139,9 +184,10 @@ def atomic_path(final: str | Path) -> Iterator[Path]:
     ensure_parent(final)
     tmp = final.parent / f".{final.name}.{uuid.uuid4().hex[:12]}.part{final.suffix}"
     try:
-        yield tmp
-        _check_replaceable(tmp, final)
-        os.replace(tmp, final)
+        with naming_full_disk(final):
+            yield tmp
+            _check_replaceable(tmp, final)
+            os.replace(tmp, final)
     finally:
         if tmp.exists() or tmp.is_symlink():
             _remove(tmp)
@@ -156,16 +202,158 @@ def is_atomic_temp(name: str) -> bool:
     return _ATOMIC_TEMP_NAME.fullmatch(name) is not None
 
 
-def write_text_atomic(path: str | Path, text: str) -> None:
-    """Write ``text`` (UTF-8) to ``path`` atomically (temp file + rename)."""
-    with atomic_path(path) as tmp:
-        tmp.write_text(text, encoding="utf-8")
+def write_text_atomic(path: str | Path, text: str, *, in_place_when_full: bool = False) -> None:
+    """Write ``text`` (UTF-8) to ``path`` atomically (temp file + rename).
+
+    Args:
+        in_place_when_full: when the disk is full, overwrite the existing file in place
+            instead, within the blocks it already has (a small record that must be updated:
+            a run's status says why it stopped, also when the disk is full). A reader may see
+            a torn file during that one write.
+
+    Raises:
+        UnwritableOutputError: as :func:`atomic_path` (a full disk also when the text does
+            not fit in the existing file's blocks).
+    """
+    try:
+        with atomic_path(path) as tmp:
+            tmp.write_text(text, encoding="utf-8")
+    except UnwritableOutputError as exc:
+        if not (in_place_when_full and exc.problem == DISK_FULL and Path(path).is_file()):
+            raise
+        data = text.encode("utf-8")
+        fd = os.open(path, os.O_WRONLY)
+        try:
+            os.pwrite(fd, data, 0)
+            os.ftruncate(fd, len(data))
+        except OSError:
+            raise exc from None
+        finally:
+            os.close(fd)
 
 
 def write_bytes_atomic(path: str | Path, data: bytes) -> None:
     """Write ``data`` to ``path`` atomically (temp file + rename)."""
     with atomic_path(path) as tmp:
         tmp.write_bytes(data)
+
+
+class HDF5Output:
+    """An HDF5 file written through a Python file object whose write errors HDF5 never sees.
+
+    HDF5 cannot close a file after a failed write (a full disk): the object it keeps
+    segfaults the interpreter when it is freed later (h5py issues 914 and 2160). Here the
+    first failed write is recorded, and from then on writes go to memory, read back from there,
+    so HDF5 sees a consistent file and closes it cleanly; :meth:`check` and :meth:`close` then
+    raise the recorded error. Only HDF5's closing metadata reaches memory: writers call
+    :meth:`check` between batches. The file is garbage after a failure; callers write it
+    inside a staging folder or under a temporary name.
+
+    Attributes:
+        path: the file written.
+        file: the ``h5py.File`` to fill.
+    """
+
+    def __init__(self, path: str | Path) -> None:
+        import h5py
+
+        self.path = Path(path)
+        self._error: OSError | None = None
+        self._raw = open(self.path, "w+b")  # closed by close() or abort()
+        self._pos = 0
+        self._size = 0
+        self._overlay: list[tuple[int, bytes]] = []  # writes after the failure, in order
+        self.file = h5py.File(self, "w")
+
+    # the file-object protocol of h5py's "fileobj" driver
+    def seek(self, offset: int, whence: int = 0) -> int:
+        base = {os.SEEK_SET: 0, os.SEEK_CUR: self._pos, os.SEEK_END: self._size}[whence]
+        self._pos = base + offset
+        return self._pos
+
+    def tell(self) -> int:
+        return self._pos
+
+    def readinto(self, buffer: Any) -> int:
+        view = memoryview(buffer).cast("B")
+        n = max(0, min(len(view), self._size - self._pos))
+        self._raw.seek(self._pos)
+        got = self._raw.readinto(view[:n]) or 0
+        view[got:n] = bytes(n - got)  # a region the failed write did not reach
+        for offset, data in self._overlay:
+            lo, hi = max(offset, self._pos), min(offset + len(data), self._pos + n)
+            if lo < hi:
+                view[lo - self._pos:hi - self._pos] = data[lo - offset:hi - offset]
+        self._pos += n
+        return n
+
+    def read(self, size: int = -1) -> bytes:
+        buffer = bytearray(max(0, self._size - self._pos) if size < 0 else size)
+        return bytes(buffer[:self.readinto(buffer)])
+
+    def write(self, data: Any) -> int:
+        data = bytes(data)
+        if self._error is None:
+            try:
+                self._raw.seek(self._pos)
+                self._raw.write(data)
+                self._raw.flush()  # a full disk shows here, not at a later flush
+            except OSError as exc:
+                self._error = exc
+        if self._error is not None:
+            self._overlay.append((self._pos, data))
+        self._pos += len(data)
+        self._size = max(self._size, self._pos)
+        return len(data)
+
+    def truncate(self, size: int | None = None) -> int:
+        size = self._pos if size is None else size
+        if self._error is None:
+            try:
+                self._raw.truncate(size)
+            except OSError as exc:
+                self._error = exc
+        self._size = size
+        return size
+
+    def flush(self) -> None:
+        pass  # every write is flushed as it is made
+
+    def check(self) -> None:
+        """Raise the first write error so far (call between batches, so that no more work is
+        spent on a file that is lost).
+
+        Raises:
+            UnwritableOutputError: the disk is full.
+            OSError: another write error, naming the file.
+        """
+        exc = self._error
+        if exc is None:
+            return
+        if is_disk_full(exc):
+            raise UnwritableOutputError(self.path, DISK_FULL) from exc
+        raise OSError(exc.errno, exc.strerror or str(exc), str(self.path)) from exc
+
+    def close(self) -> None:
+        """Close the HDF5 file and the file under it; raise a write error that happened
+        (see :meth:`check`)."""
+        try:
+            self.file.close()
+        finally:
+            try:
+                self._raw.close()
+            except OSError as exc:
+                self._error = self._error or exc
+            self._overlay.clear()
+        self.check()
+
+    def abort(self) -> None:
+        """Close without reporting write errors (the file is being discarded)."""
+        with contextlib.suppress(Exception):
+            self.file.close()
+        with contextlib.suppress(OSError):
+            self._raw.close()
+        self._overlay.clear()
 
 
 # ------------------------------------------------------------------------------ locks
@@ -202,8 +390,13 @@ class FileLock:
             os.close(fd)
             raise
         if note:
-            os.ftruncate(fd, 0)
-            os.pwrite(fd, (note + "\n").encode(), 0)
+            try:
+                os.ftruncate(fd, 0)
+                os.pwrite(fd, (note + "\n").encode(), 0)
+            except OSError as exc:
+                if not is_disk_full(exc):  # the note is for people; the lock holds without it
+                    os.close(fd)
+                    raise
         self._fd = fd
         return True
 
@@ -305,13 +498,14 @@ def atomic_dir(final: str | Path, *, replace: bool = False) -> Iterator[Path]:
         staging = Path(tempfile.mkdtemp(prefix=_staging_prefix(final.name), suffix=".tmp",
                                         dir=final.parent))
     except OSError as exc:
-        raise UnwritableOutputError(final.parent, f"cannot write here ({exc.strerror or exc})") \
-            from None
+        problem = DISK_FULL if is_disk_full(exc) else f"cannot write here ({exc.strerror or exc})"
+        raise UnwritableOutputError(final.parent, problem) from None
     owner = FileLock(staging / _OWNER_FILE)
     try:
-        owner.acquire(owner_note())
-        target = staging / final.name
-        yield target
+        with naming_full_disk(final, outermost=True):
+            owner.acquire(owner_note())
+            target = staging / final.name
+            yield target
         if not target.is_dir():
             raise RuntimeError(f"atomic_dir: nothing was written to {target}")
         raise_if_interrupted()  # a signal whose exception was swallowed: do not publish

@@ -5,7 +5,7 @@
 * a path that does not exist is fine if its folder can be created and written;
 * an existing path needs ``overwrite``, and ``overwrite`` replaces only an output of the same
   kind that egs-bench wrote: a PNG by a PNG, a figure (PNG, PDF or SVG) by a figure, a PLY by a
-  PLY, a text file by a text file, a
+  PLY, a text file by a text file, an ATE/RPE results file (``--save_results``) by one, a
   sequence folder (``meta.yaml`` with ``generator.name: egs-bench`` and nothing but sequence
   files) by a sequence folder, a run folder (``run.yaml`` written by egs-bench) by a run folder;
   an empty folder counts as free for folder outputs;
@@ -28,7 +28,7 @@ import yaml
 
 from egs_bench.errors import OutputError, UnwritableOutputError
 
-OutputKind = Literal["png", "figure", "ply", "text", "sequence", "run"]
+OutputKind = Literal["png", "figure", "ply", "text", "results", "sequence", "run"]
 
 _PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 _SEQUENCE_ENTRIES = {"meta.yaml", "frames.csv", "events.h5", "groundtruth.txt",
@@ -40,6 +40,7 @@ _FRAME_FILE = re.compile(r"^\d{6,}\.(png|npy)$")
 def _describe(kind: OutputKind) -> str:
     return {"png": "a PNG image", "figure": "a PNG, PDF or SVG figure", "ply": "a PLY file",
             "text": "a text file",
+            "results": "an ATE/RPE results file written by egs-bench",
             "sequence": "a sequence folder written by egs-bench",
             "run": "a run folder written by egs-bench"}[kind]
 
@@ -161,6 +162,8 @@ def _same_kind(path: Path, kind: OutputKind) -> tuple[bool, str]:
         return is_egs_sequence_folder(path) if kind == "sequence" else _is_egs_run_folder(path)
     if not path.is_file():
         return False, "is a folder" if path.is_dir() else "is not a regular file"
+    if kind == "results":
+        return _is_results_file(path), "is not an ATE/RPE results file written by egs-bench"
     with path.open("rb") as handle:
         head = handle.read(4096)
     if kind == "png":
@@ -177,6 +180,21 @@ def _same_kind(path: Path, kind: OutputKind) -> tuple[bool, str]:
     except UnicodeDecodeError as exc:
         text_ok = exc.start > len(head) - 4  # a multi-byte character cut by the 4 KiB read
     return text_ok, "is not a text file"
+
+
+def _is_results_file(path: Path) -> bool:
+    """Whether ``path`` holds what ``ate``/``rpe --save_results`` write (a JSON object naming
+    its metric and egs-bench among its tools): any other JSON file, such as a report's
+    ``report.json``, is the user's or another command's."""
+    import json
+
+    try:
+        data = json.loads(path.read_bytes())
+    except (OSError, ValueError):
+        return False
+    tools = data.get("tools") if isinstance(data, dict) else None
+    return (isinstance(tools, dict) and "egs_bench" in tools
+            and data.get("metric") in ("ATE", "RPE"))
 
 
 def check_never_replaced(path: str | Path, inputs: Iterable[str | Path | None] = (),
@@ -225,7 +243,7 @@ def prepare_output(path: str | Path, kind: OutputKind, *, overwrite: bool = Fals
     exists = shown.exists() or shown.is_symlink()
     # a file inside an input folder may be part of the input (a frame, a map): never replaced
     _check_not_input(out, inputs, shown,
-                     replacing=exists and kind in ("png", "figure", "ply", "text"))
+                     replacing=exists and kind in ("png", "figure", "ply", "text", "results"))
     if exists:
         protected = _protected(out)
         if protected:

@@ -29,6 +29,7 @@ from egs_bench.errors import (
     Interrupted,
     interruption_in,
 )
+from egs_bench.fileio import DISK_FULL, is_disk_full
 from egs_bench.interrupts import received_interruption, signals_interrupt
 
 _COMMAND_MODULES = (
@@ -80,9 +81,11 @@ def main(argv: list[str] | None = None) -> int:
         return _report_interruption(err, exc)
     except OSError as exc:
         # a file-system failure (disk full, permission, vanished file) outside our own checks
-        if OPTIONS.debug or exc.filename is None:
-            if OPTIONS.debug:
-                raise
+        if OPTIONS.debug:
+            raise
+        if is_disk_full(exc):
+            return _disk_full(err, exc)
+        if exc.filename is None:
             return _internal(err, exc)
         _error_line(err, "error:", f"{exc.filename}: {exc.strerror or exc}")
         return EXIT_DATA
@@ -91,6 +94,8 @@ def main(argv: list[str] | None = None) -> int:
             return _report_interruption(err, interrupted)
         if OPTIONS.debug:
             raise
+        if is_disk_full(exc):  # wrapped by a library (HDF5, an encoder)
+            return _disk_full(err, exc)
         return _internal(err, exc)
     if (interrupted := received_interruption()) is not None:
         return _report_interruption(err, interrupted)
@@ -107,6 +112,15 @@ def _report_interruption(err: Console, exc: KeyboardInterrupt) -> int:
     """One line and the exit code 128 + signal (130 for a plain Ctrl-C)."""
     err.print(str(exc) if isinstance(exc, Interrupted) else "interrupted")
     return exc.exit_code if isinstance(exc, Interrupted) else 130
+
+
+def _disk_full(err: Console, exc: BaseException) -> int:
+    """A full disk is the environment's fault, not a bug: one line naming the file when the
+    error has one (writers of egs-bench raise UnwritableOutputError, which names it)."""
+    names = [e.filename for e in (exc, exc.__cause__, exc.__context__)
+             if isinstance(e, OSError) and e.filename is not None]
+    _error_line(err, "error:", f"{names[0]}: {DISK_FULL}" if names else DISK_FULL)
+    return EXIT_DATA
 
 
 def _internal(err: Console, exc: BaseException) -> int:

@@ -185,6 +185,23 @@ def _deprecation_lines(command: Any, args: list[str]) -> list[str]:
     return lines
 
 
+_COMPLETION_OPTIONS = ("--show-completion", "--install-completion")
+_SHELLS = ("bash", "zsh", "fish", "powershell", "pwsh")
+
+
+def _naming_shell(callback: Callable[..., Any] | None, shell: str | None
+                  ) -> Callable[..., Any]:
+    """A completion option's callback that receives ``shell`` (a name) instead of the flag's
+    True when the command line named one."""
+
+    def call(ctx: Context, param: Any, value: Any) -> Any:
+        if callback is None:
+            return value
+        return callback(ctx, param, shell if value and shell else value)
+
+    return call
+
+
 class EgsBenchGroup(TyperGroup):
     """The command group: usage errors become one-line :class:`ConfigError`\\ s (typer would
     print a usage block and a framed panel), no number option of any command accepts NaN
@@ -234,8 +251,27 @@ class EgsBenchGroup(TyperGroup):
 
     def make_context(self, info_name: str | None, args: list[str],
                      parent: Context | None = None, **extra: Any) -> Context:
+        args = self._take_completion_shell(list(args))
         with _one_line_usage_errors():
             return super().make_context(info_name, args, parent=parent, **extra)
+
+    def _take_completion_shell(self, args: list[str]) -> list[str]:
+        """``--show-completion zsh`` / ``--install-completion zsh``: typer's options are flags
+        that detect the shell, so the shell named after them was ignored (the bash script was
+        printed for zsh). The name is taken out of ``args`` and handed to typer's callback,
+        which uses a shell given as text."""
+        flags = [p for p in self.params if p.name in ("show_completion", "install_completion")
+                 and getattr(p, "is_flag", False)]  # not flags: typer takes the shell itself
+        shell = None
+        for i, arg in enumerate(args[:-1]):
+            if flags and arg in _COMPLETION_OPTIONS and args[i + 1] in _SHELLS:
+                shell = args.pop(i + 1)
+                break
+        for param in flags:
+            callback = getattr(param, "_egs_bench_shell_free", param.callback)
+            param._egs_bench_shell_free = callback  # type: ignore[attr-defined]
+            param.callback = _naming_shell(callback, shell)
+        return args
 
     def invoke(self, ctx: Context) -> Any:
         with _one_line_usage_errors():  # the command's own options are parsed in here

@@ -63,6 +63,8 @@ def sweep_cmd(
     typer.echo(report.summary_md, nl=False)
     if not dry_run:
         _out.print(f"summary: {report.out / 'sweep_summary.md'} (and .csv)")
+    if (full_disk := report.full_disk()) is not None:
+        raise full_disk
     # --status answers "is the sweep complete?" with the exit code, as a run does
     if not (dry_run or no_wait) and not report.all_done:
         raise typer.Exit(1)

@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from egs_bench.errors import InputError
+from egs_bench.fileio import HDF5Output
 
 
 @dataclass(frozen=True)
@@ -87,11 +88,10 @@ class EventWriter:
     """
 
     def __init__(self, path: str | Path, t_offset_us: int = 0) -> None:
-        import h5py
-
         self.path = Path(path)
         self.t_offset_us = int(t_offset_us)
-        self._file = h5py.File(self.path, "w")
+        self._output = HDF5Output(self.path)
+        self._file = self._output.file
         group = self._file.create_group("events")
         specs = {"x": np.uint16, "y": np.uint16, "t": np.int64, "p": np.uint8}
         self._datasets = {
@@ -110,6 +110,7 @@ class EventWriter:
         n = len(events)
         if n == 0:
             return
+        self._output.check()
         t_rel = events.t - self.t_offset_us
         if t_rel[0] < 0:
             raise ValueError("event before t_offset")
@@ -135,7 +136,11 @@ class EventWriter:
         ms_to_idx = np.asarray([*self._ms_to_idx, self._count], dtype=np.int64)
         self._file.create_dataset("ms_to_idx", data=ms_to_idx, **_COMPRESSION)
         self._file.create_dataset("t_offset", data=np.int64(self.t_offset_us))
-        self._file.close()
+        self._output.close()
+
+    def abort(self) -> None:
+        """Close without finishing the file (it is being discarded after an error)."""
+        self._output.abort()
 
     def __enter__(self) -> EventWriter:
         return self
@@ -144,7 +149,7 @@ class EventWriter:
         if exc_type is None:
             self.close()
         else:
-            self._file.close()
+            self.abort()
 
 
 def write_events_h5(path: str | Path, events: Events, t_offset_us: int = 0) -> None:

@@ -24,6 +24,7 @@ is off by default because on fine textures it multiplies the number of renders s
 
 from __future__ import annotations
 
+import contextlib
 import math
 from collections.abc import Iterator, Sequence
 from dataclasses import asdict, dataclass
@@ -238,8 +239,11 @@ def generate_sequence(
     meta.update(meta_extra or {})
     meta["name"] = meta.get("name") or out.name
 
-    with atomic_dir(out, replace=overwrite) as tmp:
-        writer = SequenceWriter(tmp, meta, t_offset_us=int(boundaries[0]))
+    # the writer and the bar are closed on an error too: the bar before the error's line, the
+    # event file before its staging folder goes
+    with (atomic_dir(out, replace=overwrite) as tmp,
+          SequenceWriter(tmp, meta, t_offset_us=int(boundaries[0])) as writer,
+          contextlib.ExitStack() as closing):
         events = writer.events
         assert events is not None  # t_offset_us given: the writer has an event file
         sampler = _Sampler(source, sampling, sim.eps)
@@ -251,8 +255,8 @@ def generate_sequence(
         dense_t, dense_pose = [prev[0]], [prev[1].pose]
         frame = 0
         acc = np.zeros((cam.height, cam.width, 3))
-        bar = ProgressBar(len(t_start), f"generating {out.name}", unit="frame",
-                          enabled=progress)
+        bar = closing.enter_context(ProgressBar(len(t_start), f"generating {out.name}",
+                                                unit="frame", enabled=progress))
         for t_b in boundaries[1:]:
             raise_if_interrupted()  # one whose exception was swallowed: stop within a frame
             for cur in sampler.between(prev, int(t_b)):

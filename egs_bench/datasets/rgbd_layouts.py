@@ -14,7 +14,9 @@ Colour and depth, then the kept colour frames and the ground truth, are associat
 benchmark's ``associate.py`` does (:func:`associate`): every pair closer than ``max_dt_s``
 (default 0.02 s) is a candidate, candidates are taken closest first, and a stamp is used at
 most once. Colour frames left without a depth map or a pose are dropped (counted in the
-record). Lists with a repeated stamp keep its last line, as the benchmark's reader does.
+record). The file lists must be in time order with one stamp per file (the benchmark's reader
+would sort them and keep the last line of a repeated stamp, dropping a frame unseen); a
+repeated pose stamp in the ground truth keeps its last line, as the benchmark's reader does.
 
 The camera comes from, in this order: an intrinsics yaml given by the caller; a named TUM
 camera (``fr1``, ``fr2``, ``fr3``: the benchmark's published calibration of each Kinect,
@@ -232,19 +234,23 @@ def associate(first_s: np.ndarray, second_s: np.ndarray, max_dt_s: float = DEFAU
 def read_tum_list(path: str | Path) -> tuple[np.ndarray, list[str], int]:
     """Read a TUM file list (``rgb.txt``, ``depth.txt``): ``timestamp path`` per line.
 
-    Commas and tabs count as spaces and ``#`` lines are comments, as in the benchmark's reader;
-    of lines with the same stamp the last is kept.
+    Commas and tabs count as spaces and ``#`` lines are comments, as in the benchmark's reader.
+    The stamps must increase, as the trajectory readers require: the benchmark's reader sorts
+    and keeps the last of a repeated stamp, which silently drops a frame. A line repeated
+    exactly is counted and read once.
 
     Returns:
-        ``(stamps [N] float64 seconds, sorted; paths [N] as written; repeated stamps dropped)``.
+        ``(stamps [N] float64 seconds, increasing; paths [N] as written; repeated lines)``.
 
     Raises:
         InputError: missing or non-text file, a line without a stamp and a path, a stamp that
-            is not a finite number, or no entries.
+            is not a finite number, a stamp out of order or repeated for another file, or no
+            entries.
     """
     path = Path(path)
     entries: dict[float, str] = {}
     lines = 0
+    last: tuple[int, float] | None = None  # line number and stamp of the previous entry
     for lineno, line in enumerate(read_text(path, "file list").splitlines(), start=1):
         text = line.replace(",", " ").replace("\t", " ").strip()
         if not text or text.startswith("#"):
@@ -260,7 +266,15 @@ def read_tum_list(path: str | Path) -> tuple[np.ndarray, list[str], int]:
                                    "number") from None
         if not math.isfinite(stamp):
             raise InputError(path, f"line {lineno}: time stamp is not finite")
+        if last is not None and stamp < last[1]:
+            raise InputError(path, f"line {lineno}: time stamp {parts[0]} comes before the "
+                                   f"{last[1]!r} of line {last[0]} (the list must be in time "
+                                   "order)")
+        if stamp in entries and entries[stamp] != parts[1]:
+            raise InputError(path, f"line {lineno}: time stamp {parts[0]} of {parts[1]} is "
+                                   f"also the stamp of {entries[stamp]} (one stamp per frame)")
         entries[stamp] = parts[1]
+        last = (lineno, stamp)
         lines += 1
     if not entries:
         raise InputError(path, "lists no files")

@@ -475,6 +475,18 @@ class SequenceWriter:
         self._rows: list[dict[str, Any]] = []
         self._poses: list[np.ndarray] = []
 
+    def __enter__(self) -> SequenceWriter:
+        return self
+
+    def __exit__(self, exc_type: Any, exc: Any, tb: Any) -> None:
+        if exc_type is not None:
+            self.abort()
+
+    def abort(self) -> None:
+        """Close the event file unfinished (the folder is being discarded after an error)."""
+        if self.events is not None:
+            self.events.abort()
+
     def add_frame(self, t_start_us: int, t_end_us: int, rgb: np.ndarray, depth: np.ndarray,
                   pose: np.ndarray, sharp: np.ndarray | None = None) -> int:
         """Write frame images; ``rgb``/``sharp`` uint8 [H, W, 3], ``depth`` float [H, W] metres,

@@ -372,7 +372,7 @@ def check_results_path(path: str | Path, *, overwrite: bool, inputs: list[str | 
     if path.suffix.lower() != ".json":
         raise ConfigError(f"{option} {path}: egs-bench writes the results as JSON; name a .json "
                           "file (evo's .zip result archives are not written)")
-    return prepare_output(path, "text", overwrite=overwrite, inputs=inputs, option=option)
+    return prepare_output(path, "results", overwrite=overwrite, inputs=inputs, option=option)
 
 
 def results_json(result: Any, *, metric: str, reference: str | Path,

@@ -8,6 +8,8 @@ number of evaluated runs.
 
 When a method was run with several settings, each row is labelled with the configuration keys
 that differ between them (``egs (loss.lambda_d=0.05)``), or with the name a sweep gave the settings.
+A run whose settings could not be read (an unreadable ``config.yaml``) takes no part in that
+comparison: it forms its own row, ``egs (settings unreadable)``, whose cells are footnoted.
 """
 
 from __future__ import annotations
@@ -26,6 +28,7 @@ from egs_bench.eval.results import EVALUATED, RunResult
 MAX_LABEL_KEYS = 3
 LOST = "L"
 MISSING = "--"
+UNREADABLE_SETTINGS = "settings unreadable"
 
 
 @dataclass(frozen=True)
@@ -82,12 +85,17 @@ def differing_keys(settings: Sequence[dict[str, Any]]) -> list[str]:
 
 def settings_labels(runs: Iterable[RunResult]) -> dict[tuple[str, str], str]:
     """``(method, settings_key)`` -> a short label of those settings (``""`` when the method has
-    one set of settings only)."""
+    one set of settings only; :data:`UNREADABLE_SETTINGS` for runs whose settings are
+    unknown, which are left out of the comparison)."""
     by_method: dict[str, dict[str, RunResult]] = {}
-    for r in runs:
-        if r.method is not None:
-            by_method.setdefault(r.method, {}).setdefault(r.settings_key, r)
     out: dict[tuple[str, str], str] = {}
+    for r in runs:
+        if r.method is None:
+            continue
+        if r.settings_known:
+            by_method.setdefault(r.method, {}).setdefault(r.settings_key, r)
+        else:
+            out[(r.method, r.settings_key)] = UNREADABLE_SETTINGS
     for method, variants in by_method.items():
         if len(variants) == 1:
             out[(method, next(iter(variants)))] = ""

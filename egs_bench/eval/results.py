@@ -131,6 +131,12 @@ class RunResult:
     code_revision: dict[str, Any] | None = None
 
     @property
+    def settings_known(self) -> bool:
+        """Whether the settings were read: a run whose ``config.yaml`` (or a file read before
+        it) is unreadable has none, and must not make the other runs' settings differ."""
+        return bool(self.settings_key)
+
+    @property
     def complete(self) -> bool:
         """Covers every frame of its sequence (or the coverage is unknown, e.g. imports)."""
         if self.frames_processed is None or self.frames_in_sequence is None:
@@ -228,12 +234,10 @@ def read_run_result(path: Path, root: Path, protocol: str = DEFAULT_PROTOCOL,
     except (EgsBenchError, OSError, ValueError) as exc:
         return RunResult(**base, status="broken", reason=str(exc))
     base.update(method=run.method, sequence=run.sequence_name, code_revision=run.code_revision)
+    # the settings first: another broken file of the run (status.json) keeps them known
     try:
-        _check_text_files(path, _TEXT_FILES)
-    except EgsBenchError as exc:
-        return RunResult(**base, status="broken", reason=str(exc))
-    record = _read_sweep_record(path)
-    try:
+        _check_text_files(path, (CONFIG_FILE, SWEEP_RECORD_FILE))
+        record = _read_sweep_record(path)
         config = run.read_config() if (path / CONFIG_FILE).is_file() else {}
     except (EgsBenchError, OSError, ValueError) as exc:
         return RunResult(**base, status="broken", reason=str(exc))
@@ -243,6 +247,10 @@ def read_run_result(path: Path, root: Path, protocol: str = DEFAULT_PROTOCOL,
                 settings=settings, settings_key=settings_hash(settings),
                 settings_name=record.get("settings_name") if isinstance(
                     record.get("settings_name"), str) else None)
+    try:
+        _check_text_files(path, _TEXT_FILES)
+    except EgsBenchError as exc:
+        return RunResult(**base, status="broken", reason=str(exc))
     try:
         status = run.read_status()
     except (EgsBenchError, OSError, ValueError) as exc:

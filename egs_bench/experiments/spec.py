@@ -293,13 +293,25 @@ def _method_name(method: str, where: Path | str) -> str:
         raise InputError(where, str(exc)) from None
 
 
+def typed_options(options: Mapping[str, Any]) -> dict[str, Any]:
+    """A sweep's ``set``/``settings`` values typed by the rules of ``egs-bench run --set``
+    (:func:`egs_bench.slam.config.parse_overrides`: ``1e-3``, which YAML 1.1 reads as a string,
+    is a number where the field takes one), keyed by ``group.field``.
+
+    Raises:
+        ConfigError: an unknown option or a value of the wrong type.
+    """
+    from egs_bench.slam.config import parse_overrides
+
+    return parse_overrides([f"{k}={json.dumps(v)}" for k, v in options.items()])
+
+
 def _resolved_config(method: str, preset: str, options: Mapping[str, Any],
                      where: Path | str, meta: Mapping[str, Any] | None = None
                      ) -> dict[str, Any] | None:
     """The fully resolved SLAM configuration of a built-in method on a sequence with ``meta``
     (what its run writes to ``config.yaml``), ``None`` for plugins."""
     from egs_bench.runs.registry import get_method
-    from egs_bench.slam.config import parse_overrides
     from egs_bench.slam.methods import ConfiguredSlamMethod
 
     m = get_method(method)
@@ -309,7 +321,7 @@ def _resolved_config(method: str, preset: str, options: Mapping[str, Any],
                                     f"methods; {method!r} is a user method")
         return None
     try:  # the same typing rules as `egs-bench run --set`
-        typed = parse_overrides([f"{k}={json.dumps(v)}" for k, v in options.items()])
+        typed = typed_options(options)
         return m.config(preset, dict(meta or {})).replace(**typed).validate().to_dict()
     except ConfigError as exc:
         raise InputError(where, f"{method} with preset {preset!r}: {exc}") from None

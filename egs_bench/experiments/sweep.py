@@ -21,7 +21,7 @@ from typing import Any
 
 import pandas as pd
 
-from egs_bench.errors import ConfigError, EgsBenchError, InputError
+from egs_bench.errors import ConfigError, EgsBenchError, InputError, UnwritableOutputError
 from egs_bench.eval.metrics_file import read_metrics
 from egs_bench.eval.results import metric_values
 from egs_bench.experiments.backends import Outcome, plan_slots, run_local, run_slurm
@@ -35,7 +35,7 @@ from egs_bench.experiments.worker import (
     read_record,
     run_state,
 )
-from egs_bench.fileio import write_text_atomic
+from egs_bench.fileio import DISK_FULL, write_text_atomic
 from egs_bench.runs.folder import RunFolder
 
 BACKENDS = ("local", "slurm")
@@ -71,6 +71,16 @@ class SweepReport:
     @property
     def all_done(self) -> bool:
         return bool(len(self.summary)) and bool((self.summary["state"] == "done").all())
+
+    def full_disk(self) -> UnwritableOutputError | None:
+        """The full disk that failed a run of this invocation, naming the file the run could
+        not write (from the run's recorded reason), or None."""
+        reasons = self.summary["reason"] if "reason" in self.summary else []
+        for reason in reasons:
+            if isinstance(reason, str) and DISK_FULL in reason:
+                where = reason.split(": ", 1)[-1].rsplit(f": {DISK_FULL}", 1)[0]
+                return UnwritableOutputError(where or self.out, DISK_FULL)
+        return None
 
 
 def resolve_sequences(spec: SweepSpec, progress: bool = False, generate: bool = True

@@ -123,6 +123,10 @@ def decide(spec: RunSpec, force: bool = False, retry_failed: bool = False) -> De
     if not run_dir.exists():
         return Decision(RUN, "new")
     record = read_record(run_dir)
+    if record is None and (run_dir / SWEEP_RECORD_FILE).is_file():
+        return Decision(CONFLICT, f"{run_dir / SWEEP_RECORD_FILE}: unreadable (not a JSON "
+                                  "object: truncated or corrupt); the run folder is left "
+                                  "untouched (move it away or choose another --out)")
     if record is None or record.get("run_id") != spec.run_id:
         if run_dir.is_dir() and not any(run_dir.iterdir()):
             return Decision(RUN, "new")
@@ -287,11 +291,12 @@ def _run_method(spec: RunSpec, run_dir: Path, record: dict[str, Any]) -> None:
     """Run the method; set the record's state, reason and ``run_wall_s`` (interruptions
     propagate, with ``run_wall_s`` set)."""
     from egs_bench.datasets.sequence import Sequence
+    from egs_bench.experiments.spec import typed_options
     from egs_bench.runs.registry import get_method, with_options
 
     t0 = time.perf_counter()
     try:
-        method = with_options(get_method(spec.method), spec.options or {})
+        method = with_options(get_method(spec.method), typed_options(spec.options or {}))
         sequence = Sequence.open(spec.sequence)
         method.run(sequence, run_dir, preset=spec.preset, device=spec.device, seed=spec.seed,
                    max_frames=spec.max_frames, progress=False)

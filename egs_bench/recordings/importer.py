@@ -20,6 +20,7 @@ ATE only. ``meta.yaml`` records ``source: real``, the sensors, ``events_on_frame
 
 from __future__ import annotations
 
+import contextlib
 from collections.abc import Iterator
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -517,8 +518,12 @@ def write_sequence(inp: _Inputs, spec: RecordingSpec, out: Path, *, overwrite: b
     ev_stats = {"read": 0, "outside_undistorted": 0, "in_recording": 0,
                 "before_first_exposure": 0, "after_last_exposure": 0}
     valid_frac: list[float] = []
-    with atomic_dir(out, replace=overwrite) as tmp:
-        writer = SequenceWriter(tmp, meta, t_offset_us=int(plan.t_start[0]), with_sharp=False)
+    # the writer and the bar are closed on an error too: the bar before the error's line, the
+    # event file before its staging folder goes
+    with (atomic_dir(out, replace=overwrite) as tmp,
+          SequenceWriter(tmp, meta, t_offset_us=int(plan.t_start[0]),
+                         with_sharp=False) as writer,
+          contextlib.ExitStack() as closing):
         events_out = writer.events
         assert events_out is not None  # t_offset_us given: the writer has an event file
         for batch in _events_in(inp.events, lut, cam.width, cam.height, int(plan.t_start[0]),
@@ -532,7 +537,8 @@ def write_sequence(inp: _Inputs, spec: RecordingSpec, out: Path, *, overwrite: b
                              f"{span}): the clocks do not overlap")
         depths = _lockstep(inp.depth.load, plan.depth)
         images = _lockstep(inp.frames.load, plan.frames)
-        bar = ProgressBar(len(plan.frames), f"import {name}", unit="frame", enabled=progress)
+        bar = closing.enter_context(ProgressBar(len(plan.frames), f"import {name}",
+                                                unit="frame", enabled=progress))
         for k in range(len(plan.frames)):
             depth = reproject_depth(next(depths), depth_rays, calib.T_event_depth, pinhole)
             image = next(images)

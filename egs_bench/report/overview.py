@@ -66,7 +66,7 @@ def settings_columns(runs: list[RunRecord]) -> list[str]:
     each becomes a column); keys that only tell methods apart are left out."""
     by_method: dict[str, dict[str, dict[str, Any]]] = {}
     for r in runs:
-        if r.result.method is not None:
+        if r.result.method is not None and r.result.settings_known:
             by_method.setdefault(r.result.method, {})[r.result.settings_key] = r.result.settings
     keys: list[str] = []
     for variants in by_method.values():

@@ -63,6 +63,7 @@ from egs_bench.fileio import (
     FileLock,
     is_atomic_temp,
     lock_is_held,
+    naming_full_disk,
     owner_note,
     read_text,
     read_yaml_mapping,
@@ -312,6 +313,7 @@ class RunFolder:
         protected = [p for p in (sequence_path, groundtruth, *inputs) if p is not None]
         cls._refuse_if_locked(path)
         prepare_output(path, "run", overwrite=overwrite, inputs=protected)
+        created = not path.exists()
         path.mkdir(parents=True, exist_ok=True)
         lock = FileLock(path / LOCK_FILE)
         if not lock.acquire(owner_note()):
@@ -349,6 +351,11 @@ class RunFolder:
                 run._record_stop(exc)  # a signal right after the status went out
             else:
                 lock.release()
+                if created:  # e.g. a full disk: no half-made run without a status is left
+                    for name in (RUN_FILE, CONFIG_FILE, LOCK_FILE):
+                        (path / name).unlink(missing_ok=True)
+                    with contextlib.suppress(OSError):
+                        path.rmdir()
             raise
         if stale:
             run.log(f"kept {len(stale)} file(s) of the replaced run folder that a run does not "
@@ -506,7 +513,8 @@ class RunFolder:
         }
         if self._progress is not None:
             data["progress"] = {"done": self._progress[0], "total": self._progress[1]}
-        write_text_atomic(self.path / STATUS_FILE, json.dumps(data, indent=2) + "\n")
+        write_text_atomic(self.path / STATUS_FILE, json.dumps(data, indent=2) + "\n",
+                          in_place_when_full=True)
         self._state = state
 
     def _finish(self, state: str, reason: str | None = None, tracking_lost: bool = False
@@ -819,7 +827,7 @@ class RunFolder:
 
     def log(self, message: str) -> None:
         """Append a time-stamped line to ``log.txt`` (append-only, flushed per line)."""
-        with self.log_path.open("a") as f:
+        with naming_full_disk(self.log_path), self.log_path.open("a") as f:
             f.write(f"{_now_utc()} {message}\n")
 
     @property

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import re
 import typing
 from dataclasses import dataclass, field
 from typing import Any, Literal
@@ -337,19 +338,34 @@ class Bounds:
         return above and below
 
     def describe(self) -> str:
-        """``">= 0"``, ``"> 0"`` or ``"in (0, 1]"``."""
+        """``">= 0"``, ``"> 0"``, ``"in (0, 1]"`` or ``"in [1, 1000000]"``."""
+        low, high = _number(self.low), _number(self.high)
         if self.high is None:
-            return f"{'>' if self.low_open else '>='} {self.low:g}"
+            return f"{'>' if self.low_open else '>='} {low}"
         if self.low is None:
-            return f"{'<' if self.high_open else '<='} {self.high:g}"
-        return (f"in {'(' if self.low_open else '['}{self.low:g}, {self.high:g}"
+            return f"{'<' if self.high_open else '<='} {high}"
+        return (f"in {'(' if self.low_open else '['}{low}, {high}"
                 f"{')' if self.high_open else ']'}")
+
+
+def _number(value: float | None) -> str:
+    """A bound as written in messages: whole numbers in full (``1000000``, not ``1e+06``)."""
+    if value is None:
+        return ""
+    return str(int(value)) if float(value).is_integer() else f"{value:g}"
 
 
 _NON_NEGATIVE = Bounds(low=0)
 _POSITIVE = Bounds(low=0, low_open=True)
-_AT_LEAST_ONE = Bounds(low=1)
 _FRACTION = Bounds(low=0, high=1)
+# Every integer field has an upper bound: a count or size is allocated (nodes, sub-poses,
+# views) or looped over, and an unchecked 10^20 fails deep inside numpy or torch with the run
+# folder already made. The bounds lie far above any useful value (paper and presets: 16 CRF
+# nodes, K = 4, 10 keyframes, 1050 iterations).
+_MAX_COUNT = 1000  # keyframes, views, sub-poses: each one is rendered or stored
+_MAX_ITERATIONS = 1_000_000  # per frame or per keyframe; also frame intervals and periods
+_ITERATIONS = Bounds(low=0, high=_MAX_ITERATIONS)
+_AT_LEAST_ONE = Bounds(low=1, high=_MAX_ITERATIONS)
 
 
 def _each(group: str, names: str, bounds: Bounds) -> dict[str, Bounds]:
@@ -358,7 +374,7 @@ def _each(group: str, names: str, bounds: Bounds) -> dict[str, Bounds]:
 
 #: the range of every number field, by ``group.field`` (a test checks that none is missing)
 RANGES: dict[str, Bounds] = {
-    "method.crf_nodes": Bounds(low=2),
+    "method.crf_nodes": Bounds(low=2, high=1024),
     "method.crf_alpha": _NON_NEGATIVE,
     "method.theta": Bounds(low=0, low_open=True, null="the sequence's thresholds"),
     **_each("loss", "lambda_ne lambda_e lambda_id lambda_i lambda_d lambda_iso edge_threshold "
@@ -371,20 +387,23 @@ RANGES: dict[str, Bounds] = {
     "keyframes.interval": _AT_LEAST_ONE,
     **_each("keyframes", "overlap cutoff", _FRACTION),
     **_each("keyframes", "min_translation translation", _NON_NEGATIVE),
-    "keyframes.protected": _AT_LEAST_ONE,
-    **_each("mapping", "n_random_kfs refine_iters", _NON_NEGATIVE),
+    "keyframes.protected": Bounds(low=1),  # and below budget.window_size
+    "mapping.n_random_kfs": Bounds(low=0, high=_MAX_COUNT),
+    "mapping.refine_iters": _ITERATIONS,
     **_each("mapping", "kf_pose_lr_scale lr_quats lr_crf point_size near_plane", _POSITIVE),
     **_each("mapping", "prune_opacity init_prune_opacity", Bounds(low=0, high=1, high_open=True)),
     "budget.resolution_scale": Bounds(low=0, high=1, low_open=True),
-    "budget.segments": _AT_LEAST_ONE,
-    **_each("budget", "tracking_iters init_iters mapping_iters pose_window", _NON_NEGATIVE),
-    "budget.tracking_iters_no_prior": Bounds(low=0, null="tracking_iters"),
-    "budget.mapping_iters_per_frame": Bounds(low=1, null="mapping_iters / keyframes.interval"),
-    "budget.views_per_iter": Bounds(low=1, null="every view"),
-    "budget.window_size": Bounds(low=3),
-    "budget.edge_blocks": Bounds(low=1, null="one global threshold"),
+    "budget.segments": Bounds(low=1, high=64),
+    **_each("budget", "tracking_iters init_iters mapping_iters", _ITERATIONS),
+    "budget.pose_window": Bounds(low=0, high=_MAX_COUNT),
+    "budget.tracking_iters_no_prior": Bounds(low=0, high=_MAX_ITERATIONS, null="tracking_iters"),
+    "budget.mapping_iters_per_frame": Bounds(low=1, high=_MAX_ITERATIONS,
+                                             null="mapping_iters / keyframes.interval"),
+    "budget.views_per_iter": Bounds(low=1, high=_MAX_COUNT, null="every view"),
+    "budget.window_size": Bounds(low=3, high=_MAX_COUNT),
+    "budget.edge_blocks": Bounds(low=1, high=4096, null="one global threshold"),
     **_each("budget", "pcd_downsample_init pcd_downsample prune_every", _AT_LEAST_ONE),
-    "budget.prune_offset": _NON_NEGATIVE,
+    "budget.prune_offset": _ITERATIONS,
     "budget.tracking_lr_final": Bounds(low=0, high=1, low_open=True),
     **_each("budget", "lr_rot lr_trans lr_means lr_colors lr_opacity lr_scales", _POSITIVE),
     "budget.converged_threshold": _NON_NEGATIVE,
@@ -554,12 +573,28 @@ def preset(name: str) -> SlamConfig:
         raise ConfigError(f"unknown preset {name!r} (choose from {', '.join(PRESETS)})") from None
 
 
+# A decimal number as YAML 1.2 writes it. PyYAML follows YAML 1.1, whose float needs a dot
+# and a signed exponent, so `1e-3` and `5e2` arrive as strings.
+_DECIMAL = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
+
+
+def _as_float(value: Any) -> Any:
+    """``value`` as a float where it is an integer or a decimal string (``"1e-3"``); anything
+    else unchanged, for the type check to refuse."""
+    if isinstance(value, int) and not isinstance(value, bool):
+        return float(value)
+    if isinstance(value, str) and _DECIMAL.fullmatch(value.strip()):
+        return float(value)
+    return value
+
+
 def parse_overrides(items: list[str]) -> dict[str, Any]:
     """``["lambda_d=0.05", "method.crf=srgb", "theta=null"]`` -> ``{"loss.lambda_d": 0.05,
     "method.crf": "srgb", "method.theta": None}`` (keys as ``group.field`` paths).
 
     Values are read as YAML scalars (numbers, true/false, null, strings) and checked against
-    the field's type.
+    the field's type; a number field also takes a decimal string such as ``"1e-3"`` (which
+    YAML 1.1 reads as a string), so ``--set`` and a sweep file's ``set:`` accept it.
 
     Raises:
         ConfigError: an item without ``=``, an unknown key, or a value of the wrong type.
@@ -587,8 +622,7 @@ def parse_overrides(items: list[str]) -> dict[str, Any]:
         group, name = resolve_key(key)
         kind = typing.get_type_hints(GROUPS[group])[name]
         if kind is float or float in typing.get_args(kind):
-            if isinstance(value, int) and not isinstance(value, bool):
-                value = float(value)
+            value = _as_float(value)
         _check_type(f"{group}.{name}", kind, value)
         out[f"{group}.{name}"] = value
     return out

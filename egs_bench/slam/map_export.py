@@ -23,6 +23,8 @@
 
 from __future__ import annotations
 
+import contextlib
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -159,6 +161,35 @@ def color_space(src: MapSource, colors: str = "auto") -> str:
     return "display" if src.info.n_rest > 0 else "linear"
 
 
+# Peak memory of a render per output pixel (colour, depth, alpha, the tile lists and the
+# 8-bit image): 63 bytes measured for a numba render of 3000 x 3000 pixels.
+_RENDER_BYTES_PER_PIXEL = 64
+
+
+def _available_memory_bytes() -> int:
+    """The memory a new allocation can take without swapping (``MemAvailable`` of
+    ``/proc/meminfo``; elsewhere the free physical pages)."""
+    with contextlib.suppress(OSError, ValueError, StopIteration):
+        with open("/proc/meminfo", encoding="ascii") as f:
+            line = next(x for x in f if x.startswith("MemAvailable:"))
+        return int(line.split()[1]) * 1024
+    return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+
+
+def _require_memory_for(width: int, height: int) -> None:
+    """Refuse an image size whose render cannot fit in memory, before anything is allocated.
+
+    Raises:
+        ConfigError: naming ``--width`` and ``--height``, the memory needed and available.
+    """
+    need = width * height * _RENDER_BYTES_PER_PIXEL
+    have = _available_memory_bytes()
+    if need > have:
+        raise ConfigError(f"--width {width} x --height {height}: rendering this image needs "
+                          f"about {need / 2**30:.1f} GiB of memory, and "
+                          f"{have / 2**30:.1f} GiB is available")
+
+
 def view_camera(base: Intrinsics | None, *, width: int | None = None,
                 height: int | None = None, fov_deg: float | None = None,
                 fx: float | None = None, fy: float | None = None, cx: float | None = None,
@@ -179,7 +210,8 @@ def view_camera(base: Intrinsics | None, *, width: int | None = None,
 
     Raises:
         ConfigError: both a field of view and focal lengths, ``fy`` without ``fx``, a value
-            that is not a positive finite number, or a principal point outside the image.
+            that is not a positive finite number, a principal point outside the image, or an
+            image whose render cannot fit in the memory available.
     """
     given = {"--fx": fx, "--fy": fy, "--cx": cx, "--cy": cy, "--fov": fov_deg}
     if all(v is None for v in (width, height, *given.values())):
@@ -210,6 +242,7 @@ def view_camera(base: Intrinsics | None, *, width: int | None = None,
     cy_ = cy if cy is not None else (base.cy if keep_pp and base is not None else h / 2)
     if not (0 <= cx_ <= w and 0 <= cy_ <= h):
         raise ConfigError(f"principal point ({cx_}, {cy_}) is outside the {w}x{h} image")
+    _require_memory_for(w, h)
     return Intrinsics(float(fx_), float(fy_), float(cx_), float(cy_), int(w), int(h))
 
 

@@ -15,7 +15,7 @@ import pytest
 
 from egs_bench.baselines.import_runs import import_external_run, monogs_kept_frames
 from egs_bench.datasets.sequence import Sequence
-from egs_bench.errors import ConfigError, InputError, OutputError
+from egs_bench.errors import ConfigError, InputError, OutputError, UnwritableOutputError
 from egs_bench.eval.evaluate import evaluate_run
 from egs_bench.geometry import invert_pose, pose_from_tq, pose_to_tq
 from egs_bench.interop.export import export_sequence
@@ -482,7 +482,7 @@ def test_external_import_with_a_bad_render_leaves_nothing(seq: Sequence, export:
     original = RunFolder.write_render
     RunFolder.write_render = full_disk  # type: ignore[method-assign]
     try:
-        with pytest.raises(OSError, match="No space left"):
+        with pytest.raises(UnwritableOutputError, match=f"{out}: cannot write: the disk is full"):
             import_external_run(tmp_path / "ps", out, fmt="photoslam", export_dir=export)
     finally:
         RunFolder.write_render = original  # type: ignore[method-assign]

@@ -22,9 +22,9 @@ from egs_bench.datasets.eventreplica.interpolate import (
     PairInterpolator,
 )
 from egs_bench.datasets.eventreplica.resize import ResizeCrop
-from egs_bench.datasets.pipeline import LatentFrame
+from egs_bench.datasets.pipeline import DEFAULT_DEPTH_SCALE, LatentFrame
 from egs_bench.datasets.replica import ReplicaScene
-from egs_bench.errors import ConfigError
+from egs_bench.errors import ConfigError, InputError
 from egs_bench.geometry import Intrinsics, interpolate_pose
 
 
@@ -94,15 +94,40 @@ class ReplicaSource:
         idx = int(self.frame_indices[j])
         src = self.scene.intrinsics
         linear = srgb_to_linear(self.scene.rgb(idx).astype(np.float32) / 255.0)
+        depth = self.scene.depth(idx)
         frame = KeyFrame(
             rgb=self.geometry.rgb(linear, src),
-            depth=self.geometry.depth(self.scene.depth(idx), src),
+            depth=self._usable_depth(self.geometry.depth(depth, src), depth, idx),
             pose=self.key_poses[j].copy(),
         )
         self._frames[j] = frame
         while len(self._frames) > self._cache_size:
             self._frames.popitem(last=False)
         return frame
+
+    def _usable_depth(self, depth: np.ndarray, source: np.ndarray, idx: int) -> np.ndarray:
+        """``depth`` (the output frame's, metres) when the output can keep some of it.
+
+        A frame whose depth the sequence cannot store (all zero, or all beyond the 16-bit
+        range of its PNGs: a ``depth_scale`` off by a factor of 1000 gives kilometres) would
+        be written as a frame without depth, on which SLAM cannot start or map.
+
+        Raises:
+            InputError: naming the input depth file and what its values are.
+        """
+        far = 65535.0 / DEFAULT_DEPTH_SCALE
+        if ((depth > 0) & (depth <= far)).any():
+            return depth
+        path = self.scene.depth_paths[idx]
+        valid = source[source > 0]
+        if valid.size == 0:
+            raise InputError(path, "holds no depth: every pixel is 0 (invalid)")
+        if (valid > far).all():
+            raise InputError(path, f"every depth is beyond the {far:g} m a sequence stores "
+                                   f"({valid.min():.6g} to {valid.max():.6g} m at depth_scale "
+                                   f"{self.scene.depth_scale:g} per metre): is the depth "
+                                   "scale right?")
+        raise InputError(path, "holds no valid depth inside the output crop")
 
     def _locate(self, t_us: int) -> tuple[int, float]:
         """Segment index ``j`` and fraction ``alpha`` in [0, 1) of ``t_us`` (``alpha = 0`` at
