@@ -499,27 +499,37 @@ def paper_preset() -> SlamConfig:
 
 
 CPU_BUDGET = BudgetConfig(
-    # Half resolution and K = 3: each rendered pixel costs a numba kernel on 2 cores.
-    resolution_scale=0.5,
+    # The sequence's full resolution, with most iterations at a coarse level: on `demo-blur`
+    # (24 frames, seeds 0-2) this budget gave egs 1.58 cm / 26.51 dB at 72.6 M blends per
+    # frame, against 2.68 cm / 25.18 dB at 77.3 M for the half resolution it replaces
+    # (docs/notes/engine_cost_2026-12-04.md). K = 3: each sub-pose is a render.
+    resolution_scale=1.0,
     segments=3,
-    # 20 tracking iterations with larger, decaying steps instead of 100 at MonoGS's rates.
+    # 20 tracking iterations with larger, decaying steps instead of 100 at MonoGS's rates; the
+    # first 17 at a quarter of the resolution, the last 3 at the full one.
     tracking_iters=20,
+    tracking_coarse_scale=0.25,
+    tracking_coarse_fraction=0.85,
     lr_rot=0.006,
     lr_trans=0.006,
     tracking_lr_final=0.1,
     converged_threshold=2e-4,
+    # Map initialisation and keyframe rounds: all but the last 5 % at half the resolution.
     init_iters=150,
-    # 30 iterations x 3 views per keyframe: with 10 x 2 the map lagged behind the new keyframes
-    # and both methods drifted (monogs on `demo`, 40 frames: raw error 12 -> 5 cm).
+    mapping_coarse_scale=0.5,
+    mapping_coarse_fraction=0.95,
+    # 30 iterations x 2 views per keyframe: with 10 x 2 the map lagged behind the new keyframes
+    # and both methods drifted (monogs on `demo`, 40 frames: raw error 12 -> 5 cm); 3 views
+    # cost a third more at no gain measured at this resolution (the note above).
     mapping_iters=30,
-    views_per_iter=3,
+    views_per_iter=2,
     prune_every=20,
     prune_offset=19,
-    # 1 in 2 valid pixels at frame 0, 1 in 8 at keyframes: with 1 in 4 / 1 in 16 the map was
-    # too coarse for the blur model (egs on `demo` 1.30 -> 0.52 cm, monogs 1.57 -> 1.29).
+    # 1 in 2 valid pixels at frame 0, 1 in 8 at keyframes: sparser maps at the full resolution
+    # tracked worse (1 in 4 / 16: egs 2.14 cm on demo-blur, seed 0; 1 in 8 / 32: 5.9-7.1 cm).
     pcd_downsample_init=2,
     pcd_downsample=8,
-    # The same block size in pixels as 32 blocks at the full resolution.
+    # 16 edge-mask blocks, as measured (MonoGS uses 32 on Replica's 1200x680).
     edge_blocks=16,
     # Larger Gaussian steps for 30 instead of 150 iterations per keyframe.
     lr_colors=0.01,
