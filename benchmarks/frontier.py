@@ -118,8 +118,9 @@ def table(rows: list[dict]) -> str:
 
 
 def figure(rows: list[dict], out: Path) -> None:
-    """ATE and PSNR against blends per frame (log scale), one line per method and sequence,
-    each point a budget's mean over seeds with its seed range."""
+    """ATE and PSNR against blends per frame (log scale), one colour per method and sequence,
+    each point a budget's mean over seeds with its seed range (budgets are points, not a
+    curve: they differ in more than one field)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -139,7 +140,7 @@ def figure(rows: list[dict], out: Path) -> None:
             err = [[y - min(v) for y, v in zip(ys, vals, strict=True)],
                    [max(v) - y for y, v in zip(ys, vals, strict=True)]]
             ax.errorbar(xs, ys, yerr=err, marker="o" if method == "egs" else "s", capsize=3,
-                        label=f"{method} · {seq}")
+                        linestyle="none", label=f"{method} · {seq}")
             for x, y, p in zip(xs, ys, points, strict=True):
                 ax.annotate(p[1], (x, y), textcoords="offset points", xytext=(4, 4), fontsize=7)
     for ax, label in zip(axes, ("ATE RMSE (cm)", "PSNR (dB)"), strict=True):
