@@ -92,6 +92,14 @@ def plot_run_timing(per_frame_s: np.ndarray, iterations: Sequence[int] | None,
     ax.set_xlabel("frame")
     ax.set_ylabel("wall time [s]")
     ax.grid(alpha=0.3)
+    # Frame 0 builds the map and can take many times a tracked frame: scale the axis to the
+    # frames after it, and name frame 0's time when it is off the scale.
+    if len(per_frame_s) > 1:
+        top = 1.15 * float(np.max(per_frame_s[1:]))
+        if float(per_frame_s[0]) > top > 0:
+            ax.set_ylim(0, top)
+            ax.annotate(f"frame 0 (map initialisation): {float(per_frame_s[0]):.1f} s",
+                        (0, top), xytext=(4, -12), textcoords="offset points", fontsize=7)
     handles, labels = ax.get_legend_handles_labels()
     if iterations is not None and len(iterations) == len(per_frame_s):
         twin = ax.twinx()

@@ -21,6 +21,7 @@ from egs_bench.report.collect import RunRecord
 from egs_bench.report.config_diff import ConfigRow, config_rows, preset_baseline
 from egs_bench.report.sequence_page import Picture
 from egs_bench.report.sources import RunSources
+from egs_bench.runs.summary import work_lines
 
 _DIVERGED = re.compile(r"^frame (\d+):")
 
@@ -71,7 +72,8 @@ def metric_items(metrics: RunMetrics | None) -> list[tuple[str, str]]:
 
 
 def timing_items(record: RunRecord) -> list[tuple[str, str]]:
-    """FPS, wall time, per-frame seconds, map size and keyframes of a run."""
+    """FPS (and after frame 0), wall time, per-frame seconds, compile and initialisation
+    time, the rendering work (slam_stats.json's ``work``), map size and keyframes of a run."""
     out: list[tuple[str, str]] = []
     timing, stats = record.timing, record.slam_stats or {}
     if timing is not None:
@@ -81,8 +83,17 @@ def timing_items(record: RunRecord) -> list[tuple[str, str]]:
             per = timing.per_frame_s
             out.append(("seconds per frame (median, max)",
                         f"{float(np.median(per)):.3g}, {float(per.max()):.3g}"))
+        if timing.fps_after_init is not None:
+            out.append(("FPS after frame 0", f"{timing.fps_after_init:.3g}"))
+        if timing.init_s is not None:
+            out.append(("frame 0, map initialisation [s]", f"{timing.init_s:.1f}"))
+        if timing.compile_s is not None:
+            out.append(("kernels compiled or loaded before the loop [s]",
+                        f"{timing.compile_s:.1f}"))
         if timing.render_fps is not None:
             out.append(("render FPS", f"{timing.render_fps:.3g}"))
+    if isinstance(stats.get("work"), dict):
+        out.extend(work_lines(stats["work"]).items())
     if isinstance(stats.get("gaussians"), int):
         out.append(("map size (Gaussians at the end)", str(stats["gaussians"])))
     if record.keyframes:

@@ -335,3 +335,28 @@ def test_run_page_plots_the_map_size_over_time(runs_root: Path, tmp_path: Path) 
     assert "Map size over time" in with_sizes and "Map size over time" not in without
     assert len(_Page(result.out / "runs" / "sa-good-seed0.html").images) == \
         len(_Page(result.out / "runs" / "sa-good-seed1.html").images) + 1
+
+
+def test_run_page_shows_the_work_and_the_timing_split(runs_root: Path, tmp_path: Path) -> None:
+    """A run with slam_stats.json's ``work`` and timing.json's compile / frame-0 split shows
+    both on its page (the counts as ``egs-bench info`` prints them)."""
+    from egs_bench.runs.summary import work_lines
+
+    root = tmp_path / "runs"
+    run = root / "sa" / "good" / "seed0"
+    shutil.copytree(runs_root / "sa" / "good" / "seed0", run)
+    counts = {"calls": 40, "cameras": 160, "pixels": 1_146_880, "isects": 10,
+              "blends_fwd": 12_345_678, "blends_bwd": 12_000_000}
+    work = {"per_frame_after_init": counts, "by_phase": {"tracking": counts}}
+    (run / "slam_stats.json").write_text(json.dumps(
+        {"frames": 3, "gaussians": 130, "divergences": [], "tracking_iterations": [0, 20, 20],
+         "work": work}))
+    (run / "timing.json").write_text(json.dumps(
+        {"total_wall_s": 6.0, "per_frame_s": [4.0, 1.0, 1.0], "render_fps": 30.0,
+         "compile_s": 12.5}))
+    result = build_report(root, tmp_path / "rep")
+    page = (result.out / "runs" / "sa-good-seed0.html").read_text()
+    for label, text in work_lines(work).items():
+        assert label in page and text in page
+    assert "12.35 M blends forward" in page
+    assert "12.5" in page and "FPS after frame 0" in page and "map initialisation" in page
