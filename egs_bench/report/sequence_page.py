@@ -38,7 +38,8 @@ class Picture:
 
 @dataclass
 class SequencePage:
-    """What a sequence page shows (``page``: file stem under ``sequences/``)."""
+    """What a sequence page shows (``page``: file stem under ``sequences/``; ``view``: the data
+    of its 3D view, whose trajectories ``view_labels`` name)."""
 
     name: str
     page: str
@@ -48,6 +49,8 @@ class SequencePage:
     frames: list[int] = field(default_factory=list)
     runs: list[RunRecord] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
+    view: dict[str, Any] | None = None
+    view_labels: list[str] = field(default_factory=list)
 
 
 def representatives(board: Leaderboard, sequence: str, records: dict[str, RunRecord]
@@ -96,6 +99,7 @@ def build_sequence_page(name: str, page_name: str, data: ReportData, sources: Ru
     from egs_bench.datasets.inspect import sequence_summary
     from egs_bench.eval.figures import Panel, detail_crops, plot_comparison_grid, plot_trajectories
     from egs_bench.report.figures import plot_curves, plot_trajectory_axes
+    from egs_bench.report.viewer import sequence_view
     from egs_bench.runs.folder import RunFolder
 
     page = SequencePage(name, page_name)
@@ -112,6 +116,9 @@ def build_sequence_page(name: str, page_name: str, data: ReportData, sources: Ru
         except Exception as exc:
             page.notes.append(f"{seq.path}: sequence facts not computed ({exc})")
     ates = [(label, ate) for label, r in reps if (ate := sources.ate(r)) is not None]
+    page.view = sequence_view([r for _, r in reps], [label for label, _ in reps], sources)
+    if page.view is not None:
+        page.view_labels = [run["label"] for run in page.view["runs"]]
     if ates:
         page.figures.append(Picture("Trajectories, top view (each aligned to the ground truth)",
                                     store.figure(lambda p: plot_trajectories(ates, p))))
