@@ -31,6 +31,11 @@ import numpy as np
 
 CHROMIUM = Path("/usr/bin/chromium")
 CHROMEDRIVER = Path("/usr/bin/chromedriver")
+#: WebGL on the CPU, the same on every machine: SwiftShader through ANGLE, opted into (without
+#: it Chromium falls back to it with a deprecation warning), one device pixel per CSS pixel,
+#: no GPU process rasterisation.
+WEBGL_FLAGS = ("--use-angle=swiftshader", "--enable-unsafe-swiftshader",
+               "--force-device-scale-factor=1", "--disable-gpu-rasterization")
 
 
 def chromium_missing() -> str | None:
@@ -54,8 +59,9 @@ def open_chromium(width: int = 1400, height: int = 1000) -> Iterator[Any]:
 
     options = webdriver.ChromeOptions()
     options.binary_location = str(CHROMIUM)
-    for arg in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
-                f"--window-size={width},{height}", "--allow-file-access-from-files"):
+    for arg in ("--headless=new", "--no-sandbox", "--disable-dev-shm-usage",
+                f"--window-size={width},{height}", "--allow-file-access-from-files",
+                *WEBGL_FLAGS):
         options.add_argument(arg)
     options.set_capability("goog:loggingPrefs", {"browser": "ALL"})
     driver = webdriver.Chrome(service=Service(str(CHROMEDRIVER)), options=options)
@@ -77,6 +83,29 @@ def load_ms(driver: Any, page: Path) -> float:
             return float(end)
         time.sleep(0.01)
     raise RuntimeError(f"{page}: no load event")
+
+
+def wait_view(driver: Any, timeout_s: float = 60.0) -> float:
+    """Wait until the page's 3D view has built its map and finished sorting for its camera;
+    returns the seconds waited. WebGL on SwiftShader needs real time (a virtual time budget
+    shows a black canvas)."""
+    from selenium.webdriver.support.ui import WebDriverWait
+
+    t = time.perf_counter()
+    WebDriverWait(driver, timeout_s, poll_frequency=0.02).until(lambda d: d.execute_script(
+        "const v = window.EgsViewer && EgsViewer.views[0]; return Boolean(v && v.settled());"))
+    return time.perf_counter() - t
+
+
+def view_image(driver: Any) -> np.ndarray:
+    """The 3D view's canvas as uint8 [H, W, 3] RGB, rendered at the moment of the call."""
+    import base64
+
+    import cv2
+
+    url = driver.execute_script("return EgsViewer.views[0].capture();")
+    png = np.frombuffer(base64.b64decode(url.split(",", 1)[1]), np.uint8)
+    return np.ascontiguousarray(cv2.imdecode(png, cv2.IMREAD_COLOR)[:, :, ::-1])
 
 
 def make_runs(work: Path, methods: int, sequences: int, seeds: int, frames: int) -> Path:

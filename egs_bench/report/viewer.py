@@ -171,7 +171,7 @@ def run_view(record: RunRecord, sources: RunSources, store: AssetStore) -> dict[
         cam, near = app.camera, float(app.near_plane)
     else:
         indices, poses = list(range(len(traj))), np.asarray(traj.poses)
-        cam, near = (seq.intrinsics() if seq is not None else None), 0.01
+        cam, near = (seq.intrinsics if seq is not None else None), 0.01
     if cam is None:
         return None
     frames: list[dict[str, Any]] = [{"index": f, "pose": p} for f, p in zip(indices, _rows(poses),

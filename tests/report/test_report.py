@@ -68,7 +68,7 @@ class _Page(HTMLParser):
             self.tables[self._table].append([])
         elif tag in ("td", "th") and self._table is not None:
             self._cell = []
-        elif tag == "img":
+        elif tag == "img" and "src" in a:  # the 3D view's panel gets its sources from its script
             self.images.append(a["src"])
         elif tag == "a":
             self.links.append(a["href"])

@@ -131,6 +131,7 @@ class Base3D {
   }
 
   requestRender() {
+    this.changedAt = performance.now();
     if (this.pending) return;
     this.pending = true;
     requestAnimationFrame(() => { this.pending = false; this.renderNow(); });
@@ -308,6 +309,7 @@ class RunView extends Base3D {
       if (!el) return;
       el.hidden = !src;
       if (src) el.src = this.data.root + src;
+      else el.removeAttribute("src");
     };
     set("img.egs-view-observed", img.observed);
     set("img.egs-view-render", img.render);
@@ -342,7 +344,10 @@ class RunView extends Base3D {
   // Test and automation hooks --------------------------------------------------------------
   // Whether the map is built and the sort for the current camera has finished
   settled() {
-    return Boolean(this.ready) && !this.spark.sorting && !this.spark.sortDirty && !this.pending;
+    // quiet for a few frames: a render after a camera change starts the sort it then waits for
+    const quiet = performance.now() - (this.changedAt || 0) > 250;
+    return Boolean(this.ready) && quiet && !this.spark.sorting && !this.spark.sortDirty &&
+      !this.pending;
   }
 
   // The canvas as a PNG data URL, rendered now
@@ -399,7 +404,7 @@ class SequenceView extends Base3D {
   }
 
   settled() {
-    return !this.pending;
+    return !this.pending && performance.now() - (this.changedAt || 0) > 250;
   }
 }
 
