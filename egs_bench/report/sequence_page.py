@@ -8,8 +8,10 @@ its evaluated run with the lowest seed.
 
 from __future__ import annotations
 
+import os
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -83,19 +85,29 @@ def short_title(label: str, limit: int = STRIP_TITLE_CHARS) -> str:
     return label if len(label) <= limit else label[:limit - 1] + "…"
 
 
-def _facts(summary: dict[str, Any]) -> list[tuple[str, str]]:
+def _facts(summary: dict[str, Any], page_dir: Path | None = None) -> list[tuple[str, str]]:
+    """The summary's items as page facts; its ``path`` relative to ``page_dir`` (a shared
+    report names no folder of the machine that wrote it), left out without one."""
     def text(value: Any) -> str:
         if isinstance(value, dict):
             return ", ".join(f"{k}={v}" for k, v in value.items())
         return str(value)
 
-    return [(key.replace("_", " "), text(value)) for key, value in summary.items()]
+    items = dict(summary)
+    if "path" in items:
+        path = items.pop("path")
+        if page_dir is not None:
+            items = {"path": Path(os.path.relpath(Path(path).resolve(),
+                                                  page_dir.resolve())).as_posix(), **items}
+    return [(key.replace("_", " "), text(value)) for key, value in items.items()]
 
 
 def build_sequence_page(name: str, page_name: str, data: ReportData, sources: RunSources,
-                        store: AssetStore, frames: Sequence[int] | None = None) -> SequencePage:
+                        store: AssetStore, frames: Sequence[int] | None = None,
+                        page_dir: Path | None = None) -> SequencePage:
     """Compute the figures of sequence ``name`` into ``store`` and return the content of its
-    page ``sequences/<page_name>.html``."""
+    page ``sequences/<page_name>.html`` (``page_dir``: where that page will finally live; the
+    sequence folder's path is shown relative to it)."""
     from egs_bench.datasets.inspect import sequence_summary
     from egs_bench.eval.figures import Panel, detail_crops, plot_comparison_grid, plot_trajectories
     from egs_bench.report.figures import plot_curves, plot_trajectory_axes
@@ -112,7 +124,7 @@ def build_sequence_page(name: str, page_name: str, data: ReportData, sources: Ru
         page.notes.append("sequence folder not available: no facts and no image strip")
     else:
         try:
-            page.facts = _facts(sequence_summary(seq))
+            page.facts = _facts(sequence_summary(seq), page_dir)
         except Exception as exc:
             page.notes.append(f"{seq.path}: sequence facts not computed ({exc})")
     ates = [(label, ate) for label, r in reps if (ate := sources.ate(r)) is not None]
