@@ -1,12 +1,16 @@
-"""Size and load time of a 100-run HTML report (issue 37's scale target: < 50 MB, < 2 s).
+"""Size and load time of a 100-run HTML report (targets: overview < 2 s to load, at most 2 MB
+more per run with a 50k-Gaussian map, a run page's 3D view interactive within 3 s).
 
 Builds a runs root of ``--methods`` x ``--sequences`` x ``--seeds`` imported runs
 (:func:`egs_bench.baselines.import_runs.import_tum_run`, what ``egs-bench import-run`` does):
 each estimate is the ground truth plus seeded position noise, each render the sharp frame plus
 seeded noise, so the runs are evaluated like real ones (ATE, PSNR, SSIM, LPIPS when its weights
-are available). Then writes the report, measures its size on disk and opens its pages in
-headless Chromium: the load time is navigation start to the end of the load event
-(Navigation Timing), the median of ``--loads`` fresh loads of each page.
+are available); each run gets a ``map.ply`` of ``--gaussians`` seeded random Gaussians around
+its trajectory (the 3D view's size and load time depend on the count, not on the content).
+Then writes the report, measures its size on disk and opens its pages in headless Chromium:
+the load time is navigation start to the end of the load event (Navigation Timing), the
+median of ``--loads`` fresh loads of each page; a run page is interactive when its 3D view has
+built the map and sorted it for the first view (navigation start to that moment).
 
     python benchmarks/report_scale.py --work /tmp/report_scale           # 5 x 2 x 10 = 100 runs
     python benchmarks/report_scale.py --screenshots REPORT_DIR docs/images  # the docs' images
@@ -108,9 +112,32 @@ def view_image(driver: Any) -> np.ndarray:
     return np.ascontiguousarray(cv2.imdecode(png, cv2.IMREAD_COLOR)[:, :, ::-1])
 
 
-def make_runs(work: Path, methods: int, sequences: int, seeds: int, frames: int) -> Path:
+def write_random_map(run_dir: Path, centres: np.ndarray, count: int, seed: int) -> None:
+    """A ``map.ply`` of ``count`` random Gaussians within 2 m of the positions ``centres``
+    [M, 3] (linear colours, log scales around 1 cm, random rotations and opacities)."""
+    import torch
+
+    from egs_bench.render.gaussian_map import GaussianMap
+    from egs_bench.render.ply import save_ply
+    from egs_bench.slam.appearance import MAP_FILE
+
+    rng = np.random.default_rng(seed)
+    around = centres[rng.integers(0, len(centres), count)] + rng.uniform(-2, 2, (count, 3))
+
+    def t(x: np.ndarray) -> torch.Tensor:
+        return torch.tensor(x, dtype=torch.float32)
+
+    gmap = GaussianMap(t(around), t(rng.normal(size=(count, 4))),
+                       t(rng.normal(np.log(0.01), 0.5, (count, 3))), t(rng.normal(0, 2, count)),
+                       t(rng.uniform(0, 1, (count, 3))))
+    save_ply(gmap, run_dir / MAP_FILE)
+
+
+def make_runs(work: Path, methods: int, sequences: int, seeds: int, frames: int,
+              gaussians: int = 0) -> Path:
     """``methods x sequences x seeds`` imported, evaluated runs under ``work/runs`` on small
-    synthetic sequences (generated into ``work/data``)."""
+    synthetic sequences (generated into ``work/data``), each with a ``gaussians``-Gaussian map
+    (none for 0)."""
     from egs_bench.baselines.import_runs import import_tum_run
     from egs_bench.datasets.sequence import Sequence
     from egs_bench.datasets.synthetic import make_synthetic
@@ -146,6 +173,8 @@ def make_runs(work: Path, methods: int, sequences: int, seeds: int, frames: int)
                                      runs / f"seq{s}" / f"method{m}" / f"seed{seed}",
                                      method=f"method{m}", sequence_name=f"seq{s}",
                                      sequence_path=path, renders_dir=src / "renders")
+                if gaussians:
+                    write_random_map(run.path, est[:, :3, 3], gaussians, 1000 * m + seed)
                 evaluate_run(run.path)  # before the report: its build time is its own
     shutil.rmtree(work / "src", ignore_errors=True)
     return runs
@@ -155,8 +184,25 @@ def folder_mb(path: Path) -> float:
     return sum(p.stat().st_size for p in path.rglob("*") if p.is_file()) / 1e6
 
 
+def static_mb(report: Path) -> float:
+    """Size of the report's shared static files (style, scripts, the 3D viewer), MB."""
+    from egs_bench.report.assets import ASSETS_DIR, STATIC_FILES
+
+    return sum((report / ASSETS_DIR / name).stat().st_size for name in STATIC_FILES) / 1e6
+
+
+def interactive_ms(driver: Any, page: Path) -> float:
+    """Navigation start to the moment the page's 3D view is ready (map built, first sort
+    done), ms, for one fresh load of ``page``."""
+    driver.get("about:blank")
+    driver.get(page.resolve().as_uri())
+    wait_view(driver)
+    return float(driver.execute_script("return performance.now();"))
+
+
 def measure(report: Path, loads: int) -> dict[str, float]:
-    """Median load time [ms] of the overview, the first sequence page and the first run page."""
+    """Median load time [ms] of the overview, the first sequence page and the first run page,
+    and the median time until that run page's 3D view is interactive."""
     pages = {"index": report / "index.html",
              "sequence": sorted((report / "sequences").glob("*.html"))[0],
              "run": sorted((report / "runs").glob("*.html"))[0]}
@@ -165,6 +211,8 @@ def measure(report: Path, loads: int) -> dict[str, float]:
         for name, page in pages.items():
             out[f"{name}_load_ms_median"] = statistics.median(load_ms(driver, page)
                                                               for _ in range(loads))
+        out["run_view_interactive_ms_median"] = statistics.median(
+            interactive_ms(driver, pages["run"]) for _ in range(loads))
     return out
 
 
@@ -188,6 +236,8 @@ def main() -> None:
     parser.add_argument("--sequences", type=int, default=2)
     parser.add_argument("--seeds", type=int, default=10)
     parser.add_argument("--frames", type=int, default=40)
+    parser.add_argument("--gaussians", type=int, default=50_000,
+                        help="Gaussians in each run's map (0: no maps)")
     parser.add_argument("--loads", type=int, default=7)
     parser.add_argument("--screenshots", nargs=2, type=Path, metavar=("REPORT", "OUT_DIR"),
                         help="only take the docs' screenshots of an existing report")
@@ -204,7 +254,8 @@ def main() -> None:
     runs = args.work / "runs"
     t = time.perf_counter()
     if not runs.is_dir():
-        make_runs(args.work, args.methods, args.sequences, args.seeds, args.frames)
+        make_runs(args.work, args.methods, args.sequences, args.seeds, args.frames,
+                  args.gaussians)
     made_s = time.perf_counter() - t
     report = args.work / "report"
     t = time.perf_counter()
@@ -212,7 +263,10 @@ def main() -> None:
     build_s = time.perf_counter() - t
     numbers = {"runs": result.runs, "sequences": result.sequences, "frames": args.frames,
                "make_and_evaluate_runs_s": round(made_s, 1), "build_report_s": round(build_s, 1),
+               "gaussians_per_map": args.gaussians,
                "report_mb": round(folder_mb(report), 2),
+               # what each run adds: everything but the shared style, scripts and viewer
+               "mb_per_run": round((folder_mb(report) - static_mb(report)) / result.runs, 3),
                "assets_written": result.assets_written, "assets_reused": result.assets_reused,
                **{k: round(v, 1) for k, v in measure(report, args.loads).items()}}
     print(json.dumps(numbers, indent=1))
