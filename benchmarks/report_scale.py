@@ -218,15 +218,37 @@ def measure(report: Path, loads: int) -> dict[str, float]:
 
 def screenshots(report: Path, out: Path) -> list[Path]:
     """Screenshots, 1280 px wide, of the overview and the first sequence page (tall enough
-    for its figures and image strip) as ``report_overview.png`` and ``report_sequence.png``."""
+    for its figures and image strip) as ``report_overview.png`` and ``report_sequence.png``;
+    of the 3D view of the first run page with a map, at its middle frame and 3x size
+    (``report_run_view.png``), and of the first sequence page's 3D view
+    (``report_sequence_view.png``)."""
+    from selenium.webdriver.common.by import By
+
+    sequence = sorted((report / "sequences").glob("*.html"))[0]
     pages = [(report / "index.html", out / "report_overview.png", 1400),
-             (sorted((report / "sequences").glob("*.html"))[0], out / "report_sequence.png",
-              2300)]
+             (sequence, out / "report_sequence.png", 2300)]
     for page, png, height in pages:
         with open_chromium(1280, height) as driver:
             driver.get(page.resolve().as_uri())
             driver.save_screenshot(str(png))
-    return [p for _, p, _ in pages]
+    run = next(p for p in sorted((report / "runs").glob("*.html"))
+               if "egs-view-canvas" in p.read_text())
+    views = [(run, out / "report_run_view.png"), (sequence, out / "report_sequence_view.png")]
+    with open_chromium(1400, 1400) as driver:
+        for page, png in views:
+            driver.get(page.resolve().as_uri())
+            wait_view(driver)
+            if page == run:
+                # at the middle frame's pose, then a step back to show its frustum and the
+                # trajectories
+                driver.execute_script(
+                    "const v = EgsViewer.views[0]; v.setScale(3);"
+                    "v.setFrame(Math.floor(v.data.frames.length / 2)); v.setMode('orbit');"
+                    "v.camera.translateZ(0.6 * v.orbitRadius); v.camera.translateY(0.2 * v.orbitRadius);"
+                    "v.controls.update(); v.requestRender();")
+                wait_view(driver)
+            driver.find_element(By.CSS_SELECTOR, ".egs-view").screenshot(str(png))
+    return [p for _, p, _ in pages] + [p for _, p in views]
 
 
 def main() -> None:

@@ -202,7 +202,13 @@ class RunView extends Base3D {
       this.sceneCounts.trajectories++;
     }
     const pts = [...(d.est || []), ...(d.gt || [])];
-    const { center, radius } = sceneRadius(pts.length ? pts : [[0, 0, 0]]);
+    const { center } = sceneRadius(pts.length ? pts : [[0, 0, 0]]);
+    // frusta and the orbit distance at the scale of the scene: the map's extent when there is
+    // one (a short trajectory would make them invisible), else the trajectories'
+    let { radius } = sceneRadius(pts.length ? pts : [[0, 0, 0]]);
+    if (d.map && d.map.count) {
+      radius = Math.max(radius, 0.25 * sceneRadius([d.map.bbox_min, d.map.bbox_max]).radius);
+    }
     this.frusta = new THREE.Group();
     for (const k of d.keyframes) {
       const f = d.frames[k];
@@ -214,6 +220,9 @@ class RunView extends Base3D {
     this.group.add(this.current);
     this.orbitCenter = center;
     this.orbitRadius = radius;
+    // orbit about the first camera's up direction (its -y axis, OpenCV axes)
+    const p0 = d.frames[0].pose;
+    this.camera.up.set(-p0[1], -p0[5], -p0[9]).normalize();
   }
 
   bindUi() {
