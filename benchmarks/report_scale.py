@@ -244,7 +244,8 @@ def screenshots(report: Path, out: Path) -> list[Path]:
                 driver.execute_script(
                     "const v = EgsViewer.views[0]; v.setScale(3);"
                     "v.setFrame(Math.floor(v.data.frames.length / 2)); v.setMode('orbit');"
-                    "v.camera.translateZ(0.6 * v.orbitRadius); v.camera.translateY(0.2 * v.orbitRadius);"
+                    "v.camera.translateZ(0.6 * v.orbitRadius);"
+                    "v.camera.translateY(0.2 * v.orbitRadius);"
                     "v.controls.update(); v.requestRender();")
                 wait_view(driver)
             driver.find_element(By.CSS_SELECTOR, ".egs-view").screenshot(str(png))
