@@ -75,16 +75,25 @@ def encode_splats(means: np.ndarray, rotations: np.ndarray, log_scales: np.ndarr
 
     Returns:
         the bytes (``17 N``: positions ``6 N``, scales ``3 N``, colours ``3 N``, opacities
-        ``N``, rotations ``4 N``) and the ranges.
+        ``N``, rotations ``4 N``) and the ranges; Gaussians with a non-finite value or a zero
+        quaternion are left out (``N`` counts the others).
     """
     means = np.asarray(means, dtype=np.float64).reshape(-1, 3)
+    log_scales = np.asarray(log_scales, dtype=np.float64).reshape(-1, 3)
+    colors = np.asarray(colors, dtype=np.float64).reshape(-1, 3)
+    q = np.asarray(rotations, dtype=np.float64).reshape(-1, 4)
+    opacities = np.asarray(opacities, dtype=np.float64).reshape(-1)
+    # a Gaussian with a non-finite value cannot be drawn (and would stretch the ranges)
+    norm = np.linalg.norm(q, axis=1)
+    keep = (np.isfinite(means).all(1) & np.isfinite(log_scales).all(1)
+            & np.isfinite(colors).all(1) & np.isfinite(opacities) & np.isfinite(norm)
+            & (norm > 0))
+    means, log_scales, colors, opacities = means[keep], log_scales[keep], colors[keep], \
+        opacities[keep]
+    q = q[keep] / norm[keep, None]
     n = len(means)
     if n == 0:
         return EncodedSplats(0, b"", [0.0] * 3, [0.0] * 3, 0.0, 0.0, [0.0] * 3, [0.0] * 3)
-    log_scales = np.asarray(log_scales, dtype=np.float64).reshape(n, 3)
-    colors = np.asarray(colors, dtype=np.float64).reshape(n, 3)
-    q = np.asarray(rotations, dtype=np.float64).reshape(n, 4)
-    q = q / np.linalg.norm(q, axis=1, keepdims=True)
     lo, hi = means.min(0), means.max(0)
     s0, s1 = float(log_scales.min()), float(log_scales.max())
     c0, c1 = colors.min(0), colors.max(0)
@@ -92,7 +101,7 @@ def encode_splats(means: np.ndarray, rotations: np.ndarray, log_scales: np.ndarr
         _quantise(means, lo, hi, 65535).astype("<u2"),
         _quantise(log_scales, np.full(3, s0), np.full(3, s1), 255).astype(np.uint8),
         _quantise(colors, c0, c1, 255).astype(np.uint8),
-        np.rint(np.clip(np.asarray(opacities, dtype=np.float64), 0, 1) * 255).astype(np.uint8),
+        np.rint(np.clip(opacities, 0, 1) * 255).astype(np.uint8),
         np.rint(np.clip(q, -1, 1) * 127).astype(np.int8),
     ]
     data = b"".join(np.ascontiguousarray(p).tobytes() for p in parts)
@@ -173,6 +182,10 @@ def run_view(record: RunRecord, sources: RunSources, store: AssetStore) -> dict[
         indices, poses = list(range(len(traj))), np.asarray(traj.poses)
         cam, near = (seq.intrinsics if seq is not None else None), 0.01
     if cam is None:
+        return None
+    if not np.isfinite(poses).all():
+        sources.notes.setdefault(str(path), []).append(
+            f"no 3D view: {run.trajectory_path} holds non-finite poses")
         return None
     frames: list[dict[str, Any]] = [{"index": f, "pose": p} for f, p in zip(indices, _rows(poses),
                                                                             strict=True)]

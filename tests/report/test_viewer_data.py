@@ -51,3 +51,10 @@ def test_empty_map() -> None:
     enc = encode_splats(np.zeros((0, 3)), np.zeros((0, 4)), np.zeros((0, 3)), np.zeros(0),
                         np.zeros((0, 3)))
     assert enc.count == 0 and enc.data == b""
+
+
+def test_gaussians_that_cannot_be_drawn_are_left_out() -> None:
+    means = np.array([[0.0, 0, 0], [np.nan, 0, 0], [1, 1, 1], [2, 2, 2]])
+    q = np.array([[1.0, 0, 0, 0], [1, 0, 0, 0], [0, 0, 0, 0], [0, 1, 0, 0]])
+    enc = encode_splats(means, q, np.full((4, 3), -3.0), np.full(4, 0.5), np.full((4, 3), 0.5))
+    assert enc.count == 2 and enc.bbox_min == [0.0] * 3 and enc.bbox_max == [2.0] * 3
