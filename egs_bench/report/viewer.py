@@ -34,7 +34,7 @@ VIEW_SUFFIX = ".view.js"
 #: Bytes per Gaussian of :func:`encode_splats`.
 SPLAT_BYTES = 17
 #: Most frames whose images a run view stores (evenly spaced over the rendered frames).
-MAX_IMAGE_FRAMES = 12
+MAX_IMAGE_FRAMES = 8
 
 
 @dataclass(frozen=True)
