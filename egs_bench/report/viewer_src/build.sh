@@ -10,4 +10,5 @@ out=../static
   --target=es2020 --outfile="$out/viewer.js"
 cp node_modules/three/LICENSE "$out/viewer.LICENSE-three.txt"
 cp node_modules/@sparkjsdev/spark/LICENSE "$out/viewer.LICENSE-spark.txt"
+cp node_modules/fflate/LICENSE "$out/viewer.LICENSE-fflate.txt"  # bundled by Spark
 echo "wrote $out/viewer.js ($(wc -c < "$out/viewer.js") bytes)"
