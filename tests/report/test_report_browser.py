@@ -256,6 +256,28 @@ def test_run_view_matches_render_map(sweep_out: Path, chromium, tmp_path: Path) 
     assert all(c - p >= PLANTED_MARGIN_DB for c, p in zip(correct, planted, strict=True))
     assert _errors(chromium) == []
 
+    # fly: W moves the camera forward (along its optical axis); orbit: a drag turns it
+    from selenium.webdriver.common.action_chains import ActionChains
+
+    chromium.execute_script("EgsViewer.views[0].setPlantedError(null);")
+    _slide_to(chromium, 0)
+    position = "return EgsViewer.views[0].camera.position.toArray();"
+    before = np.array(chromium.execute_script(position))
+    canvas = chromium.find_element(By.CSS_SELECTOR, "canvas.egs-view-canvas")
+    chromium.find_element(By.CSS_SELECTOR, "button.egs-view-fly").click()
+    ActionChains(chromium).move_to_element(canvas).click().key_down("w").pause(0.5) \
+        .key_up("w").perform()
+    step = np.array(chromium.execute_script(position)) - before
+    forward = traj.poses[0][:3, 2]
+    assert np.linalg.norm(step) > 0.05 and step @ forward > 0.9 * np.linalg.norm(step)
+    chromium.find_element(By.CSS_SELECTOR, "button.egs-view-orbit").click()
+    turn = "return EgsViewer.views[0].camera.quaternion.toArray();"
+    q0 = np.array(chromium.execute_script(turn))
+    ActionChains(chromium).move_to_element(canvas).click_and_hold().move_by_offset(60, 0) \
+        .release().perform()
+    assert abs(float(np.array(chromium.execute_script(turn)) @ q0)) < 0.9999
+    assert _errors(chromium) == []
+
 
 @pytest.mark.slow
 def test_sequence_view_toggles_each_trajectory(sweep_out: Path, chromium) -> None:
