@@ -219,7 +219,8 @@ def measure(report: Path, loads: int) -> dict[str, float]:
 def screenshots(report: Path, out: Path) -> list[Path]:
     """Screenshots, 1280 px wide, of the overview and the first sequence page (tall enough
     for its figures and image strip) as ``report_overview.png`` and ``report_sequence.png``;
-    of the 3D view of the first run page with a map, at its middle frame and 3x size
+    of the 3D view of the first run page with a map, at the frame with stored images nearest
+    its middle and 3x size
     (``report_run_view.png``), and of the first sequence page's 3D view
     (``report_sequence_view.png``)."""
     from selenium.webdriver.common.by import By
@@ -243,7 +244,9 @@ def screenshots(report: Path, out: Path) -> list[Path]:
                 # trajectories
                 driver.execute_script(
                     "const v = EgsViewer.views[0]; v.setScale(3);"
-                    "v.setFrame(Math.floor(v.data.frames.length / 2)); v.setMode('orbit');"
+                    "const mid = v.data.frames[Math.floor(v.data.frames.length / 2)];"
+                    "v.setFrame(mid.images_from ?? v.data.frames.indexOf(mid));"
+                    "v.setMode('orbit');"
                     "v.camera.translateZ(0.6 * v.orbitRadius);"
                     "v.camera.translateY(0.2 * v.orbitRadius);"
                     "v.controls.update(); v.requestRender();")

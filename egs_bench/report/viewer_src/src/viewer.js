@@ -396,7 +396,7 @@ class SequenceView extends Base3D {
       all.push(...data.gt);
     }
     const { center, radius } = sceneRadius(all.length ? all : [[0, 0, 0]]);
-    this.camera.position.copy(center).add(new THREE.Vector3(0, -1.2 * radius, -1.6 * radius));
+    this.camera.position.copy(center).add(new THREE.Vector3(0, -0.8 * radius, -1.1 * radius));
     this.camera.up.set(0, -1, 0);
     this.controls.target.copy(center);
     this.controls.update();
