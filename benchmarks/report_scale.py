@@ -1,12 +1,16 @@
-"""Size and load time of a 100-run HTML report (issue 37's scale target: < 50 MB, < 2 s).
+"""Size and load time of a 100-run HTML report (targets: overview < 2 s to load, at most 2 MB
+more per run with a 50k-Gaussian map, a run page's 3D view interactive within 3 s).
 
 Builds a runs root of ``--methods`` x ``--sequences`` x ``--seeds`` imported runs
 (:func:`egs_bench.baselines.import_runs.import_tum_run`, what ``egs-bench import-run`` does):
 each estimate is the ground truth plus seeded position noise, each render the sharp frame plus
 seeded noise, so the runs are evaluated like real ones (ATE, PSNR, SSIM, LPIPS when its weights
-are available). Then writes the report, measures its size on disk and opens its pages in
-headless Chromium: the load time is navigation start to the end of the load event
-(Navigation Timing), the median of ``--loads`` fresh loads of each page.
+are available); each run gets a ``map.ply`` of ``--gaussians`` seeded random Gaussians around
+its trajectory (the 3D view's size and load time depend on the count, not on the content).
+Then writes the report, measures its size on disk and opens its pages in headless Chromium:
+the load time is navigation start to the end of the load event (Navigation Timing), the
+median of ``--loads`` fresh loads of each page; a run page is interactive when its 3D view has
+built the map and sorted it for the first view (navigation start to that moment).
 
     python benchmarks/report_scale.py --work /tmp/report_scale           # 5 x 2 x 10 = 100 runs
     python benchmarks/report_scale.py --screenshots REPORT_DIR docs/images  # the docs' images
@@ -31,6 +35,11 @@ import numpy as np
 
 CHROMIUM = Path("/usr/bin/chromium")
 CHROMEDRIVER = Path("/usr/bin/chromedriver")
+#: WebGL on the CPU, the same on every machine: SwiftShader through ANGLE, opted into (without
+#: it Chromium falls back to it with a deprecation warning), one device pixel per CSS pixel,
+#: no GPU process rasterisation.
+WEBGL_FLAGS = ("--use-angle=swiftshader", "--enable-unsafe-swiftshader",
+               "--force-device-scale-factor=1", "--disable-gpu-rasterization")
 
 
 def chromium_missing() -> str | None:
@@ -60,8 +69,8 @@ def open_chromium(width: int = 1400, height: int = 1000,
 
     options = webdriver.ChromeOptions()
     options.binary_location = str(CHROMIUM)
-    for arg in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
-                f"--window-size={width},{height}"):
+    for arg in ("--headless=new", "--no-sandbox", "--disable-dev-shm-usage",
+                f"--window-size={width},{height}", *WEBGL_FLAGS):
         options.add_argument(arg)
     if file_access:
         options.add_argument("--allow-file-access-from-files")
@@ -87,9 +96,55 @@ def load_ms(driver: Any, page: Path) -> float:
     raise RuntimeError(f"{page}: no load event")
 
 
-def make_runs(work: Path, methods: int, sequences: int, seeds: int, frames: int) -> Path:
+def wait_view(driver: Any, timeout_s: float = 60.0) -> float:
+    """Wait until the page's 3D view has built its map and finished sorting for its camera;
+    returns the seconds waited. WebGL on SwiftShader needs real time (a virtual time budget
+    shows a black canvas)."""
+    from selenium.webdriver.support.ui import WebDriverWait
+
+    t = time.perf_counter()
+    WebDriverWait(driver, timeout_s, poll_frequency=0.02).until(lambda d: d.execute_script(
+        "const v = window.EgsViewer && EgsViewer.views[0]; return Boolean(v && v.settled());"))
+    return time.perf_counter() - t
+
+
+def view_image(driver: Any) -> np.ndarray:
+    """The 3D view's canvas as uint8 [H, W, 3] RGB, rendered at the moment of the call."""
+    import base64
+
+    import cv2
+
+    url = driver.execute_script("return EgsViewer.views[0].capture();")
+    png = np.frombuffer(base64.b64decode(url.split(",", 1)[1]), np.uint8)
+    return np.ascontiguousarray(cv2.imdecode(png, cv2.IMREAD_COLOR)[:, :, ::-1])
+
+
+def write_random_map(run_dir: Path, centres: np.ndarray, count: int, seed: int) -> None:
+    """A ``map.ply`` of ``count`` random Gaussians within 2 m of the positions ``centres``
+    [M, 3] (linear colours, log scales around 1 cm, random rotations and opacities)."""
+    import torch
+
+    from egs_bench.render.gaussian_map import GaussianMap
+    from egs_bench.render.ply import save_ply
+    from egs_bench.slam.appearance import MAP_FILE
+
+    rng = np.random.default_rng(seed)
+    around = centres[rng.integers(0, len(centres), count)] + rng.uniform(-2, 2, (count, 3))
+
+    def t(x: np.ndarray) -> torch.Tensor:
+        return torch.tensor(x, dtype=torch.float32)
+
+    gmap = GaussianMap(t(around), t(rng.normal(size=(count, 4))),
+                       t(rng.normal(np.log(0.01), 0.5, (count, 3))), t(rng.normal(0, 2, count)),
+                       t(rng.uniform(0, 1, (count, 3))))
+    save_ply(gmap, run_dir / MAP_FILE)
+
+
+def make_runs(work: Path, methods: int, sequences: int, seeds: int, frames: int,
+              gaussians: int = 0) -> Path:
     """``methods x sequences x seeds`` imported, evaluated runs under ``work/runs`` on small
-    synthetic sequences (generated into ``work/data``)."""
+    synthetic sequences (generated into ``work/data``), each with a ``gaussians``-Gaussian map
+    (none for 0)."""
     from egs_bench.baselines.import_runs import import_tum_run
     from egs_bench.datasets.sequence import Sequence
     from egs_bench.datasets.synthetic import make_synthetic
@@ -125,6 +180,8 @@ def make_runs(work: Path, methods: int, sequences: int, seeds: int, frames: int)
                                      runs / f"seq{s}" / f"method{m}" / f"seed{seed}",
                                      method=f"method{m}", sequence_name=f"seq{s}",
                                      sequence_path=path, renders_dir=src / "renders")
+                if gaussians:
+                    write_random_map(run.path, est[:, :3, 3], gaussians, 1000 * m + seed)
                 evaluate_run(run.path)  # before the report: its build time is its own
     shutil.rmtree(work / "src", ignore_errors=True)
     return runs
@@ -134,8 +191,25 @@ def folder_mb(path: Path) -> float:
     return sum(p.stat().st_size for p in path.rglob("*") if p.is_file()) / 1e6
 
 
+def static_mb(report: Path) -> float:
+    """Size of the report's shared static files (style, scripts, the 3D viewer), MB."""
+    from egs_bench.report.assets import ASSETS_DIR, STATIC_FILES
+
+    return sum((report / ASSETS_DIR / name).stat().st_size for name in STATIC_FILES) / 1e6
+
+
+def interactive_ms(driver: Any, page: Path) -> float:
+    """Navigation start to the moment the page's 3D view is ready (map built, first sort
+    done), ms, for one fresh load of ``page``."""
+    driver.get("about:blank")
+    driver.get(page.resolve().as_uri())
+    wait_view(driver)
+    return float(driver.execute_script("return performance.now();"))
+
+
 def measure(report: Path, loads: int) -> dict[str, float]:
-    """Median load time [ms] of the overview, the first sequence page and the first run page."""
+    """Median load time [ms] of the overview, the first sequence page and the first run page,
+    and the median time until that run page's 3D view is interactive."""
     pages = {"index": report / "index.html",
              "sequence": sorted((report / "sequences").glob("*.html"))[0],
              "run": sorted((report / "runs").glob("*.html"))[0]}
@@ -144,20 +218,48 @@ def measure(report: Path, loads: int) -> dict[str, float]:
         for name, page in pages.items():
             out[f"{name}_load_ms_median"] = statistics.median(load_ms(driver, page)
                                                               for _ in range(loads))
+        out["run_view_interactive_ms_median"] = statistics.median(
+            interactive_ms(driver, pages["run"]) for _ in range(loads))
     return out
 
 
 def screenshots(report: Path, out: Path) -> list[Path]:
     """Screenshots, 1280 px wide, of the overview and the first sequence page (tall enough
-    for its figures and image strip) as ``report_overview.png`` and ``report_sequence.png``."""
+    for its figures and image strip) as ``report_overview.png`` and ``report_sequence.png``;
+    of the 3D view of the first run page with a map, at the frame with stored images nearest
+    its middle and 3x size
+    (``report_run_view.png``), and of the first sequence page's 3D view
+    (``report_sequence_view.png``)."""
+    from selenium.webdriver.common.by import By
+
+    sequence = sorted((report / "sequences").glob("*.html"))[0]
     pages = [(report / "index.html", out / "report_overview.png", 1400),
-             (sorted((report / "sequences").glob("*.html"))[0], out / "report_sequence.png",
-              2300)]
+             (sequence, out / "report_sequence.png", 2300)]
     for page, png, height in pages:
         with open_chromium(1280, height) as driver:
             driver.get(page.resolve().as_uri())
             driver.save_screenshot(str(png))
-    return [p for _, p, _ in pages]
+    run = next(p for p in sorted((report / "runs").glob("*.html"))
+               if "egs-view-canvas" in p.read_text())
+    views = [(run, out / "report_run_view.png"), (sequence, out / "report_sequence_view.png")]
+    with open_chromium(1400, 1400) as driver:
+        for page, png in views:
+            driver.get(page.resolve().as_uri())
+            wait_view(driver)
+            if page == run:
+                # at the middle frame's pose, then a step back to show its frustum and the
+                # trajectories
+                driver.execute_script(
+                    "const v = EgsViewer.views[0]; v.setScale(3);"
+                    "const mid = v.data.frames[Math.floor(v.data.frames.length / 2)];"
+                    "v.setFrame(mid.images_from ?? v.data.frames.indexOf(mid));"
+                    "v.setMode('orbit');"
+                    "v.camera.translateZ(0.6 * v.orbitRadius);"
+                    "v.camera.translateY(0.2 * v.orbitRadius);"
+                    "v.controls.update(); v.requestRender();")
+                wait_view(driver)
+            driver.find_element(By.CSS_SELECTOR, ".egs-view").screenshot(str(png))
+    return [p for _, p, _ in pages] + [p for _, p in views]
 
 
 def main() -> None:
@@ -167,6 +269,8 @@ def main() -> None:
     parser.add_argument("--sequences", type=int, default=2)
     parser.add_argument("--seeds", type=int, default=10)
     parser.add_argument("--frames", type=int, default=40)
+    parser.add_argument("--gaussians", type=int, default=50_000,
+                        help="Gaussians in each run's map (0: no maps)")
     parser.add_argument("--loads", type=int, default=7)
     parser.add_argument("--screenshots", nargs=2, type=Path, metavar=("REPORT", "OUT_DIR"),
                         help="only take the docs' screenshots of an existing report")
@@ -183,7 +287,8 @@ def main() -> None:
     runs = args.work / "runs"
     t = time.perf_counter()
     if not runs.is_dir():
-        make_runs(args.work, args.methods, args.sequences, args.seeds, args.frames)
+        make_runs(args.work, args.methods, args.sequences, args.seeds, args.frames,
+                  args.gaussians)
     made_s = time.perf_counter() - t
     report = args.work / "report"
     t = time.perf_counter()
@@ -191,7 +296,10 @@ def main() -> None:
     build_s = time.perf_counter() - t
     numbers = {"runs": result.runs, "sequences": result.sequences, "frames": args.frames,
                "make_and_evaluate_runs_s": round(made_s, 1), "build_report_s": round(build_s, 1),
+               "gaussians_per_map": args.gaussians,
                "report_mb": round(folder_mb(report), 2),
+               # what each run adds: everything but the shared style, scripts and viewer
+               "mb_per_run": round((folder_mb(report) - static_mb(report)) / result.runs, 3),
                "assets_written": result.assets_written, "assets_reused": result.assets_reused,
                **{k: round(v, 1) for k, v in measure(report, args.loads).items()}}
     print(json.dumps(numbers, indent=1))

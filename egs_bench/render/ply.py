@@ -1,7 +1,7 @@
-"""Save/load a :class:`GaussianMap` as a standard 3DGS ``.ply`` (binary little endian).
+"""Save/load a :class:`GaussianMap` as a ``.ply`` in the 3DGS property layout (binary little
+endian).
 
-Vertex properties, in the order the 3DGS reference code writes them (so the INRIA loader,
-gsplat's ``load_ply_to_splats`` and common viewers such as SuperSplat open the file): ``x y z
+Vertex properties, in the order the 3DGS reference code writes them: ``x y z
 nx ny nz f_dc_0 f_dc_1 f_dc_2 [f_rest_0 .. f_rest_{3((d+1)^2-1)-1}] opacity scale_0 scale_1
 scale_2 rot_0 rot_1 rot_2 rot_3``, all float32.
 
@@ -13,9 +13,13 @@ scale_2 rot_0 rot_1 rot_2 rot_3``, all float32.
   radiance, may exceed 1; a run's ``map.ply``) or ``display`` (LDR values in [0, 1] that viewers
   show as they are; :func:`egs_bench.slam.map_export.export_display_ply`). Maps written before
   the comment existed are linear.
-* ``sh_degree`` 0 (the SLAM map) writes no ``f_rest_*``; degree ``d > 0`` writes
-  ``3((d+1)^2 - 1)`` zero coefficients in the INRIA channel-major order (the INRIA loader
-  asserts exactly 45 for its default degree 3). On load, higher-order SH are ignored.
+* ``sh_degree`` 0 (the SLAM map, a run's ``map.ply``) writes no ``f_rest_*``; degree ``d > 0``
+  writes ``3((d+1)^2 - 1)`` zero coefficients in the INRIA channel-major order. The INRIA loader
+  asserts exactly 45 (degree 3), so it opens only degree-3 files; with linear colours viewers
+  also show a map too dark. A file for other 3DGS tools is therefore the display-space degree-3
+  export (:func:`egs_bench.slam.map_export.export_display_ply`, ``egs-bench export-map``),
+  which the INRIA loader, gsplat's ``load_ply_to_splats`` and viewers such as SuperSplat open.
+  On load, higher-order SH are ignored.
 * ``keyframe_ids`` are not stored (they are -1 after loading).
 """
 
@@ -76,7 +80,7 @@ def sh0_to_rgb(f_dc: np.ndarray) -> np.ndarray:
 
 def save_ply(gmap: GaussianMap, path: str | Path, *, sh_degree: int = 0,
              color_space: str = "linear") -> None:
-    """Write ``gmap`` to ``path`` atomically as a float32 3DGS ``.ply``.
+    """Write ``gmap`` to ``path`` atomically as a float32 ``.ply`` in the 3DGS layout.
 
     Args:
         sh_degree: SH degree of the file; the ``f_rest_*`` coefficients are zero (the map's
@@ -109,7 +113,8 @@ def save_ply(gmap: GaussianMap, path: str | Path, *, sh_degree: int = 0,
 
 
 def load_ply(path: str | Path, dtype: torch.dtype = torch.float32) -> GaussianMap:
-    """Read a 3DGS ``.ply``; raises :class:`InputError` naming the file if it is not one."""
+    """Read a ``.ply`` in the 3DGS layout; raises :class:`InputError` naming the file if it is
+    not one."""
     return read_ply(path, dtype)[0]
 
 

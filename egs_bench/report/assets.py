@@ -26,8 +26,10 @@ ASSETS_DIR = "assets"
 THUMB_WIDTH = 320
 #: Widest stored image strip, pixels (a page shows it at most 1200 px wide).
 STRIP_WIDTH = 2000
-#: The page style and script, copied from the package next to the images.
-STATIC_FILES = ("report.css", "report.js")
+#: The page style, its script and the 3D viewer (three.js + Spark, built from
+#: ``viewer_src/``) with its licences, copied from the package next to the images.
+STATIC_FILES = ("report.css", "report.js", "viewer.js", "viewer.LICENSE-three.txt",
+                "viewer.LICENSE-spark.txt", "viewer.LICENSE-fflate.txt")
 _HASH_CHARS = 16
 
 

@@ -5,7 +5,10 @@ Layout of a report::
     <out>/index.html              overview: provenance, leaderboards, flagged runs, all runs
     <out>/sequences/<name>.html   one page per sequence
     <out>/runs/<name>.html        one page per run
-    <out>/assets/                 report.css, report.js, PNGs named by content (shared)
+    <out>/runs/<name>.view.js     its 3D view's data (the run's quantised map, poses, images)
+    <out>/sequences/<name>.view.js  the sequence's 3D view of all trajectories
+    <out>/assets/                 report.css, report.js, viewer.js (the 3D viewer, with its
+                                  licences), PNGs named by content (shared)
     <out>/report.json             what wrote the report (recognises it for --overwrite)
 
 The folder is built in a hidden staging folder next to ``<out>`` and renamed into place when
@@ -15,6 +18,7 @@ existing report is replaced only after the new one is complete.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -36,9 +40,10 @@ from egs_bench.report.overview import (
     runs_table,
     settings_columns,
 )
-from egs_bench.report.pages import render
+from egs_bench.report.pages import relative_paths, render
 from egs_bench.report.run_page import build_run_page
 from egs_bench.report.sequence_page import SequencePage, build_sequence_page
+from egs_bench.report.viewer import VIEW_SUFFIX, run_view, write_view_script
 
 MANIFEST = "report.json"
 GENERATOR = "egs-bench report"
@@ -138,7 +143,8 @@ def write_pages(data: ReportData, root: Path, final: Path,
     for name in data.sequences:
         if say:
             say(f"sequence {name}")
-        seq_pages[name] = build_sequence_page(name, pages[name], data, sources, store, frames)
+        seq_pages[name] = build_sequence_page(name, pages[name], data, sources, store, frames,
+                                              final / "sequences")
     nav = [{"name": n, "page": p.page, "count": len(p.runs)} for n, p in seq_pages.items()]
     common = {"nav_sequences": nav, "protocol": protocol}
     baselines: dict = {}
@@ -146,15 +152,29 @@ def write_pages(data: ReportData, root: Path, final: Path,
         if say and (i + 1) % 25 == 0:
             say(f"run pages: {i + 1}/{len(data.runs)}")
         seq = seq_pages.get(record.result.sequence or "")
+        view = run_view(record, sources, store)
+        script = f"{record.page}{VIEW_SUFFIX}" if view is not None else None
+        if view is not None and script is not None:
+            write_view_script(root / "runs" / script, view)
         page = build_run_page(record, sources, store, seq.frames if seq else [],
                               final / "runs", baselines)
         html = render("run.html", title=f"{record.result.rel}: egs-bench report", root="../",
-                      run=page, seq_page=seq.page if seq else None, **common)
+                      run=page, seq_page=seq.page if seq else None, view_script=script,
+                      **common)
         (root / "runs" / f"{record.page}.html").write_text(html, encoding="utf-8")
     for name, seq in seq_pages.items():
+        if seq.view is not None:
+            write_view_script(root / "sequences" / f"{seq.page}{VIEW_SUFFIX}", seq.view)
         only = ReportData(data.source, data.kind, data.protocols, data.boards, seq.runs)
+        # the sequence page is the one users share: its messages name no local folder
+        seq_dir = final / "sequences"
+        table = runs_table(only, columns, labels)
+        table.rows = [[dataclasses.replace(c, text=relative_paths(c.text, seq_dir),
+                                           sort=relative_paths(c.sort, seq_dir)) for c in row]
+                      for row in table.rows]
+        seq.notes = [relative_paths(n, seq_dir) for n in seq.notes]
         html = render("sequence.html", title=f"{name}: egs-bench report", root="../", seq=seq,
-                      runs=runs_table(only, columns, labels), **common)
+                      runs=table, **common)
         (root / "sequences" / f"{seq.page}.html").write_text(html, encoding="utf-8")
     boards = [{"name": p, "description": get_protocol(p).description,
                "table": leaderboard_table(b, columns, labels), "notes": b.notes}

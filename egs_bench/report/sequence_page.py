@@ -8,8 +8,10 @@ its evaluated run with the lowest seed.
 
 from __future__ import annotations
 
+import os
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -38,7 +40,8 @@ class Picture:
 
 @dataclass
 class SequencePage:
-    """What a sequence page shows (``page``: file stem under ``sequences/``)."""
+    """What a sequence page shows (``page``: file stem under ``sequences/``; ``view``: the data
+    of its 3D view, whose trajectories ``view_labels`` name)."""
 
     name: str
     page: str
@@ -48,6 +51,8 @@ class SequencePage:
     frames: list[int] = field(default_factory=list)
     runs: list[RunRecord] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
+    view: dict[str, Any] | None = None
+    view_labels: list[str] = field(default_factory=list)
 
 
 def representatives(board: Leaderboard, sequence: str, records: dict[str, RunRecord]
@@ -80,22 +85,33 @@ def short_title(label: str, limit: int = STRIP_TITLE_CHARS) -> str:
     return label if len(label) <= limit else label[:limit - 1] + "…"
 
 
-def _facts(summary: dict[str, Any]) -> list[tuple[str, str]]:
+def _facts(summary: dict[str, Any], page_dir: Path | None = None) -> list[tuple[str, str]]:
+    """The summary's items as page facts; its ``path`` relative to ``page_dir`` (a shared
+    report names no folder of the machine that wrote it), left out without one."""
     def text(value: Any) -> str:
         if isinstance(value, dict):
             return ", ".join(f"{k}={v}" for k, v in value.items())
         return str(value)
 
-    return [(key.replace("_", " "), text(value)) for key, value in summary.items()]
+    items = dict(summary)
+    if "path" in items:
+        path = items.pop("path")
+        if page_dir is not None:
+            items = {"path": Path(os.path.relpath(Path(path).resolve(),
+                                                  page_dir.resolve())).as_posix(), **items}
+    return [(key.replace("_", " "), text(value)) for key, value in items.items()]
 
 
 def build_sequence_page(name: str, page_name: str, data: ReportData, sources: RunSources,
-                        store: AssetStore, frames: Sequence[int] | None = None) -> SequencePage:
+                        store: AssetStore, frames: Sequence[int] | None = None,
+                        page_dir: Path | None = None) -> SequencePage:
     """Compute the figures of sequence ``name`` into ``store`` and return the content of its
-    page ``sequences/<page_name>.html``."""
+    page ``sequences/<page_name>.html`` (``page_dir``: where that page will finally live; the
+    sequence folder's path is shown relative to it)."""
     from egs_bench.datasets.inspect import sequence_summary
     from egs_bench.eval.figures import Panel, detail_crops, plot_comparison_grid, plot_trajectories
     from egs_bench.report.figures import plot_curves, plot_trajectory_axes
+    from egs_bench.report.viewer import sequence_view
     from egs_bench.runs.folder import RunFolder
 
     page = SequencePage(name, page_name)
@@ -108,10 +124,13 @@ def build_sequence_page(name: str, page_name: str, data: ReportData, sources: Ru
         page.notes.append("sequence folder not available: no facts and no image strip")
     else:
         try:
-            page.facts = _facts(sequence_summary(seq))
+            page.facts = _facts(sequence_summary(seq), page_dir)
         except Exception as exc:
             page.notes.append(f"{seq.path}: sequence facts not computed ({exc})")
     ates = [(label, ate) for label, r in reps if (ate := sources.ate(r)) is not None]
+    page.view = sequence_view([r for _, r in reps], [label for label, _ in reps], sources)
+    if page.view is not None:
+        page.view_labels = [run["label"] for run in page.view["runs"]]
     if ates:
         page.figures.append(Picture("Trajectories, top view (each aligned to the ground truth)",
                                     store.figure(lambda p: plot_trajectories(ates, p))))

@@ -68,7 +68,7 @@ class _Page(HTMLParser):
             self.tables[self._table].append([])
         elif tag in ("td", "th") and self._table is not None:
             self._cell = []
-        elif tag == "img":
+        elif tag == "img" and "src" in a:  # the 3D view's panel gets its sources from its script
             self.images.append(a["src"])
         elif tag == "a":
             self.links.append(a["href"])
@@ -138,6 +138,14 @@ def test_sequence_and_run_pages(runs_root: Path, tmp_path: Path) -> None:
     text = (result.out / "sequences" / "sa.html").read_text()
     assert "Image strip (frames 2, 5)" in text
     assert "48x32" in text  # the sequence's facts (resolution)
+    # a shared report names no local folder: the sequence's path is relative to its page
+    data_root = str(runs_root.parent.resolve())
+    for page_file in (result.out / "sequences").iterdir():
+        assert data_root not in page_file.read_text(), page_file
+    rel = re.search(r"<dt>path</dt><dd>([^<]+)</dd>", text)
+    assert rel is not None
+    assert (result.out / "sequences" / rel.group(1)).resolve() == \
+        (runs_root.parent / "data" / "sa").resolve()
     run_html = result.out / "runs" / "sa-good-seed0.html"
     page = _Page(run_html)
     # two plots, then per frame: observed, render, sharp GT

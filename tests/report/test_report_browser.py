@@ -6,6 +6,12 @@ run folder's own failure guard). The page must load without console errors, list
 leaderboard rows, reorder them when a column header is clicked, load every image and plot,
 and flag the failed run with its reason.
 
+The run page's 3D view is checked against the toolkit's own renderer: through the page's frame
+slider the view's camera goes to each frame's estimated pose, and the canvas, at the run's
+resolution, must match ``egs-bench render-map RUN --frame I`` (display space) at
+:data:`VIEW_PSNR_DB` or more, while the same check on a view with a planted convention error
+(the y axis flipped) must fail by at least :data:`PLANTED_MARGIN_DB`.
+
 Driver: selenium with Debian's ``chromium-driver``, because the driver comes from the same
 Debian release as the ``chromium`` it drives (no version mismatch, nothing downloaded), while
 playwright pins its own browser build and would need ``playwright install``.
@@ -17,6 +23,7 @@ import dataclasses
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 import yaml
 
@@ -25,6 +32,11 @@ from tests.helpers.bench_scripts import load_script
 from tests.helpers.sweep_fixtures import worker_env
 
 scale = load_script("report_scale")
+
+#: The view against ``render-map`` at the same pose: the least PSNR accepted, dB.
+VIEW_PSNR_DB = 25.0
+#: How far below the correct view a planted convention error must score, dB.
+PLANTED_MARGIN_DB = 10.0
 
 
 @pytest.fixture(scope="module")
@@ -80,8 +92,11 @@ def _errors(driver) -> list[dict]:
 
 
 def _images(driver) -> list[tuple[str, bool, int]]:
+    """``(src, complete, naturalWidth)`` of the page's shown images (the 3D view's panel
+    hides the images a frame does not have)."""
     return [tuple(x) for x in driver.execute_script(
-        "return Array.from(document.images).map(i => [i.src, i.complete, i.naturalWidth]);")]
+        "return Array.from(document.images).filter(i => !i.hidden)"
+        ".map(i => [i.src, i.complete, i.naturalWidth]);")]
 
 
 def _column(driver, table: str, index: int) -> list[str]:
@@ -149,3 +164,145 @@ def test_report_of_a_real_sweep_in_chromium(sweep_out: Path, chromium) -> None:
     assert "injected: out of memory at frame 2" in status.text
     manifest = json.loads((report / "report.json").read_text())
     assert manifest["runs"] == 5 and manifest["kind"] == "sweep"
+
+
+def _slide_to(driver, position: int) -> None:
+    """Move the run view's frame slider the way a user does (an ``input`` event)."""
+    driver.execute_script(
+        "const s = document.querySelector('input.egs-view-frame'); s.value = arguments[0];"
+        "s.dispatchEvent(new Event('input'));", position)
+
+
+def _view_psnrs(driver, run: Path, frames: list[int], out: Path,
+                views: list[np.ndarray] | None = None) -> list[float]:
+    """PSNR [dB] of the 3D view at each frame (set through the slider) against
+    ``render-map RUN --frame I``; the view's images are appended to ``views``."""
+    from egs_bench.eval.image_metrics import psnr
+    from egs_bench.images import read_ldr_image
+
+    values = []
+    for position, frame in enumerate(frames):
+        _slide_to(driver, position)
+        scale.wait_view(driver)
+        view = scale.view_image(driver)
+        if views is not None:
+            views.append(view)
+        png = out / f"render-map-{frame}.png"
+        assert main(["render-map", str(run), "--frame", str(frame), "-o", str(png),
+                     "--overwrite"]) == 0
+        ref = read_ldr_image(png)
+        assert view.shape == ref.shape, (view.shape, ref.shape)
+        values.append(psnr(view, ref))
+    return values
+
+
+@pytest.mark.slow
+def test_run_view_matches_render_map(sweep_out: Path, chromium, tmp_path: Path) -> None:
+    from selenium.webdriver.common.by import By
+
+    from egs_bench.images import read_ldr_image
+    from egs_bench.render.ply import read_ply
+    from egs_bench.runs.folder import RunFolder
+
+    run_dir = sweep_out / "runs" / "demo" / "egs" / "seed0"
+    run = RunFolder.open(run_dir)
+    report = sweep_out / "report"
+    chromium.get((report / "runs" / "runs-demo-egs-seed0.html").resolve().as_uri())
+    scale.wait_view(chromium)
+    assert _errors(chromium) == []
+    assert chromium.execute_script("return location.protocol") == "file:"
+
+    # the scene holds the run's map, both trajectories and one frustum per keyframe
+    counts = chromium.execute_script("return EgsViewer.views[0].sceneCounts;")
+    keyframes = run.read_keyframes()
+    assert keyframes is not None and len(keyframes) > 0
+    gmap, _ = read_ply(run_dir / "map.ply")
+    assert counts == {"splats": len(gmap), "trajectories": 2, "frusta": len(keyframes)}
+    data = chromium.execute_script("return window.EGS_VIEW;")
+    traj = run.read_trajectory()
+    assert len(data["est"]) == len(traj) == len(data["frames"])
+    frames = [f["index"] for f in data["frames"]]
+    assert frames == [0, 1, 2]
+
+    # the slider moves the camera to the frame's estimated pose; the panel shows that frame
+    for position, frame in enumerate(frames):
+        _slide_to(chromium, position)
+        camera = chromium.execute_script(
+            "return EgsViewer.views[0].camera.position.toArray();")
+        assert camera == pytest.approx(traj.poses[position][:3, 3], abs=1e-5)
+        panel = chromium.find_element(By.CSS_SELECTOR, ".egs-view-images")
+        assert panel.get_attribute("data-frame") == str(frame)
+        assert panel.find_element(By.CSS_SELECTOR, ".egs-view-image-frame").text == \
+            f"frame {frame}"
+        shown = chromium.execute_script(
+            "return document.querySelector('img.egs-view-render').getAttribute('src');")
+        assert (read_ldr_image((report / "runs" / shown).resolve())
+                == run.read_render(frame)).all()
+    chromium.execute_script("EgsViewer.views[0].setScale(1);")
+    # only the map is compared: the trajectories and frusta are switched off as a user does
+    for box in chromium.find_elements(By.CSS_SELECTOR, "input.egs-view-toggle"):
+        if box.get_attribute("data-what") != "map":
+            box.click()
+            assert not box.is_selected()
+    views: list[np.ndarray] = []
+    correct = _view_psnrs(chromium, run_dir, frames, tmp_path, views)
+    # SwiftShader (report_scale.WEBGL_FLAGS) draws the same pixels on a fresh load
+    chromium.get((report / "runs" / "runs-demo-egs-seed0.html").resolve().as_uri())
+    scale.wait_view(chromium)
+    chromium.execute_script("EgsViewer.views[0].setScale(1);")
+    for box in chromium.find_elements(By.CSS_SELECTOR, "input.egs-view-toggle"):
+        if box.get_attribute("data-what") != "map":
+            box.click()
+    scale.wait_view(chromium)
+    assert (scale.view_image(chromium) == views[0]).all()
+    chromium.execute_script("EgsViewer.views[0].setPlantedError('flip-y');")
+    planted = _view_psnrs(chromium, run_dir, frames, tmp_path)
+    print(f"view against render-map, PSNR [dB]: {correct}; with the y axis flipped: {planted}")
+    assert min(correct) >= VIEW_PSNR_DB, correct
+    # the check catches a convention error: it fails on every frame, by a wide margin
+    assert max(planted) < VIEW_PSNR_DB, planted
+    assert all(c - p >= PLANTED_MARGIN_DB for c, p in zip(correct, planted, strict=True))
+    assert _errors(chromium) == []
+
+    # fly: W moves the camera forward (along its optical axis); orbit: a drag turns it
+    from selenium.webdriver.common.action_chains import ActionChains
+
+    chromium.execute_script("EgsViewer.views[0].setPlantedError(null);")
+    _slide_to(chromium, 0)
+    position = "return EgsViewer.views[0].camera.position.toArray();"
+    before = np.array(chromium.execute_script(position))
+    canvas = chromium.find_element(By.CSS_SELECTOR, "canvas.egs-view-canvas")
+    chromium.find_element(By.CSS_SELECTOR, "button.egs-view-fly").click()
+    ActionChains(chromium).move_to_element(canvas).click().key_down("w").pause(0.5) \
+        .key_up("w").perform()
+    step = np.array(chromium.execute_script(position)) - before
+    forward = traj.poses[0][:3, 2]
+    assert np.linalg.norm(step) > 0.05 and step @ forward > 0.9 * np.linalg.norm(step)
+    chromium.find_element(By.CSS_SELECTOR, "button.egs-view-orbit").click()
+    turn = "return EgsViewer.views[0].camera.quaternion.toArray();"
+    q0 = np.array(chromium.execute_script(turn))
+    ActionChains(chromium).move_to_element(canvas).click_and_hold().move_by_offset(60, 0) \
+        .release().perform()
+    assert abs(float(np.array(chromium.execute_script(turn)) @ q0)) < 0.9999
+    assert _errors(chromium) == []
+
+
+@pytest.mark.slow
+def test_sequence_view_toggles_each_trajectory(sweep_out: Path, chromium) -> None:
+    from selenium.webdriver.common.by import By
+
+    page = sweep_out / "report" / "sequences" / "demo.html"
+    chromium.get(page.resolve().as_uri())
+    scale.wait_view(chromium)
+    assert _errors(chromium) == []
+    data = chromium.execute_script("return window.EGS_VIEW;")
+    labels = [r["label"] for r in data["runs"]]
+    assert sorted(labels) == ["egs", "monogs"]
+    assert chromium.execute_script("return EgsViewer.views[0].sceneCounts;") == \
+        {"trajectories": len(labels) + 1}
+    boxes = chromium.find_elements(By.CSS_SELECTOR, "input.egs-view-toggle")
+    assert len(boxes) == len(labels) + 1
+    boxes[0].click()
+    visible = chromium.execute_script(
+        "const v = EgsViewer.views[0]; return v.lines.map(g => g.visible).concat([v.gt.visible]);")
+    assert visible == [False, True, True]
