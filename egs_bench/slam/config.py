@@ -500,10 +500,9 @@ def paper_preset() -> SlamConfig:
 
 CPU_BUDGET = BudgetConfig(
     # The sequence's full resolution, with most iterations at a coarse level: on `demo-blur`
-    # (24 frames, seeds 0-2) this budget gave egs 2.59 cm / 25.72 dB at 63.9 M blends per
-    # frame and 1.14x the CPU time, against 2.68 cm / 25.18 dB at 77.3 M for the half
-    # resolution it replaces (docs/notes/engine_cost_2026-12-04.md). K = 3: each sub-pose is
-    # a render.
+    # (24 frames, seeds 0-2) this budget gave egs 1.58 cm / 26.51 dB at 72.6 M blends per
+    # frame, against 2.68 cm / 25.18 dB at 77.3 M for the half resolution it replaces
+    # (docs/notes/engine_cost_2026-12-04.md). K = 3: each sub-pose is a render.
     resolution_scale=1.0,
     segments=3,
     # 20 tracking iterations with larger, decaying steps instead of 100 at MonoGS's rates; the
@@ -526,11 +525,12 @@ CPU_BUDGET = BudgetConfig(
     views_per_iter=2,
     prune_every=20,
     prune_offset=19,
-    # 1 in 4 valid pixels at frame 0, 1 in 16 at keyframes: twice the map (1 in 2 / 8) tracked
-    # better (egs 1.58 cm, 26.51 dB) for 1.6x the CPU time of the old default; half of it
-    # (1 in 8 / 32) broke tracking (5.9-7.1 cm).
-    pcd_downsample_init=4,
-    pcd_downsample=16,
+    # 1 in 2 valid pixels at frame 0, 1 in 8 at keyframes: sparser maps at the full resolution
+    # tracked worse (1 in 4 / 16: egs 2.59 cm on demo-blur and 1.44 cm on the 112x64 room of
+    # the end-to-end test, whose bound is 1.37; 1 in 8 / 32: 5.9-7.1 cm on demo-blur), though
+    # half the map costs 1.14x instead of 1.6x the old default's CPU time.
+    pcd_downsample_init=2,
+    pcd_downsample=8,
     # 16 edge-mask blocks, as measured (MonoGS uses 32 on Replica's 1200x680).
     edge_blocks=16,
     # Larger Gaussian steps for 30 instead of 150 iterations per keyframe.
