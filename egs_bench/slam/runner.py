@@ -22,7 +22,7 @@ from egs_bench.runs.folder import RunFolder
 from egs_bench.slam.appearance import APPEARANCE_FILE, MAP_FILE, Appearance, ldr8, write_appearance
 from egs_bench.slam.components import SlamComponents
 from egs_bench.slam.config import SlamConfig, resolve_device
-from egs_bench.slam.progress import PhaseProgress
+from egs_bench.slam.progress import COMPILING, PhaseProgress
 from egs_bench.slam.render_model import render_views
 from egs_bench.slam.system import FrameReport, SlamResult, SlamSystem
 
@@ -108,8 +108,10 @@ def run_slam(seq: SequenceView, out: str | Path, *, method_name: str, config: Sl
         # gives compile_s apart, so a cold cache does not lower the run's frame rate.
         t_compile = time.perf_counter()
         if resolve_backend(config.runtime.backend, system.device) == "numba":
-            if not kernels_ready():
-                bar.set_postfix_str("compiling kernels…")
+            from egs_bench.warmup import uncached_kernels
+
+            if not kernels_ready() and uncached_kernels("egs_bench.render"):
+                bar.set_postfix_str(COMPILING)  # only when numba's cache lacks them
             numba_backend.prepare_kernels()
         compile_s = time.perf_counter() - t_compile
         t_start = time.perf_counter()
