@@ -122,7 +122,9 @@ def test_report_of_a_real_sweep_in_chromium(sweep_out: Path, chromium) -> None:
     def shown(col: int) -> list[float]:
         return [float(v.split(" ± ")[0]) for v in _column(chromium, "#leaderboard-egs", col)]
 
-    metrics = [heads.index(h) for h in ("demo ATE [cm] ↓", "demo PSNR [dB] ↑")]
+    # (3 frames of 3 tracking iterations leave both methods near the motion prior: their ATE
+    # and PSNR may agree to the digits shown; their FPS does not)
+    metrics = [heads.index(h) for h in ("demo ATE [cm] ↓", "demo PSNR [dB] ↑", "demo FPS ↑")]
     col = next((c for c in metrics if len(set(shown(c))) > 1), None)
     assert col is not None, "the fixture's methods differ in no metric shown"
     header = chromium.find_elements(By.CSS_SELECTOR, "#leaderboard-egs thead th")[col]
