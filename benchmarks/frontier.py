@@ -3,7 +3,9 @@ frame, from finished run folders (BENCHMARKS.md "Accuracy per work").
 
 Work is machine-independent (slam_stats.json's ``work`` section, egs_bench.render.work):
 Gaussian-pixel blends per frame after frame 0, forward plus backward. A run's budget label is
-the sweep setting in its folder name (``<method>__<setting>/seed<N>``), else its preset.
+the sweep setting in its folder name (``<method>__<setting>/seed<N>``; a ``_p<N>`` suffix names
+a perturbation run of the same budget, ``runtime.perturbation``), else its preset. Each budget's
+row is the mean and spread over its seeds and perturbations (the noise floor).
 
     python benchmarks/frontier.py collect SWEEP_DIR... --out docs/notes/frontier_runs.csv
     python benchmarks/frontier.py table docs/notes/frontier_runs.csv
@@ -15,18 +17,21 @@ from __future__ import annotations
 import argparse
 import csv
 import json
+import re
 import statistics
 from collections import defaultdict
 from pathlib import Path
 
-COLUMNS = ("sequence", "method", "budget", "seed", "frames", "ate_cm", "psnr_db", "ssim",
-           "lpips", "blends_m_per_frame", "pixels_m_per_frame", "cameras_per_frame",
-           "gaussians", "keyframes", "s_per_frame_after_init")
+COLUMNS = ("sequence", "method", "budget", "seed", "perturbation", "frames", "ate_cm",
+           "psnr_db", "ssim", "lpips", "blends_m_per_frame", "pixels_m_per_frame",
+           "cameras_per_frame", "gaussians", "keyframes", "s_per_frame_after_init")
 
 
 def _budget(run_dir: Path, config: dict) -> str:
     name = run_dir.parent.name
-    return name.split("__", 1)[1] if "__" in name else str(config.get("preset", "?"))
+    if "__" not in name:
+        return str(config.get("preset", "?"))
+    return re.sub(r"_p\d+$", "", name.split("__", 1)[1])
 
 
 def run_row(run_dir: Path) -> dict | None:
@@ -49,6 +54,7 @@ def run_row(run_dir: Path) -> dict | None:
     return {
         "sequence": metrics["run"]["sequence"], "method": metrics["run"]["method"],
         "budget": _budget(run_dir, config), "seed": config.get("seed"),
+        "perturbation": ((config.get("slam") or {}).get("runtime") or {}).get("perturbation", 0),
         "frames": stats["frames"], "ate_cm": round(100 * metrics["ate"]["rmse_m"], 3),
         "psnr_db": _round(rendering.get("psnr_db"), 2), "ssim": _round(rendering.get("ssim"), 3),
         "lpips": _round(rendering.get("lpips"), 3),
@@ -71,7 +77,8 @@ def collect(roots: list[Path], out: Path) -> list[dict]:
             row = run_row(stats.parent)
             if row is not None:
                 rows.append(row)
-    rows.sort(key=lambda r: (r["sequence"], r["method"], r["blends_m_per_frame"], r["seed"]))
+    rows.sort(key=lambda r: (r["sequence"], r["method"], r["blends_m_per_frame"], r["seed"],
+                             r["perturbation"]))
     out.parent.mkdir(parents=True, exist_ok=True)
     with out.open("w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=COLUMNS)
@@ -102,8 +109,9 @@ def _spread(values: list[float], digits: int) -> str:
 
 
 def table(rows: list[dict]) -> str:
-    """Markdown: per sequence, method and budget, mean ± half-range over the seeds."""
-    lines = ["| sequence | method | budget | seeds | blends / frame (M) | ATE cm | PSNR dB | "
+    """Markdown: per sequence, method and budget, mean ± half-range over its runs (seeds x
+    perturbations)."""
+    lines = ["| sequence | method | budget | runs | blends / frame (M) | ATE cm | PSNR dB | "
              "SSIM | LPIPS | Gaussians | s / frame |",
              "|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|"]
     for (seq, method, budget), rs in sorted(groups(rows).items(), key=lambda kv: (
@@ -119,7 +127,7 @@ def table(rows: list[dict]) -> str:
 
 def figure(rows: list[dict], out: Path) -> None:
     """ATE and PSNR against blends per frame (log scale), one colour per method and sequence,
-    each point a budget's mean over seeds with its seed range (budgets are points, not a
+    each point a budget's mean over its runs with their range (budgets are points, not a
     curve: they differ in more than one field)."""
     import matplotlib
 
@@ -149,7 +157,7 @@ def figure(rows: list[dict], out: Path) -> None:
         ax.set_ylabel(label)
         ax.grid(alpha=0.3)
     axes[1].legend(fontsize=7)
-    fig.suptitle("Accuracy per work (mean and range over seeds)")
+    fig.suptitle("Accuracy per work (mean and range over seeds and perturbations)")
     fig.tight_layout()
     out.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out, dpi=110)

@@ -14,6 +14,7 @@ import torch
 from egs_bench.datasets.sequence_view import SequenceView
 from egs_bench.errors import ConfigError, InputError
 from egs_bench.geometry import invert_pose
+from egs_bench.geometry.lie import se3_exp
 from egs_bench.interrupts import raise_if_interrupted
 from egs_bench.render import GaussianMap
 from egs_bench.slam.components import SlamComponents
@@ -59,6 +60,18 @@ class _Keyframes:
 
     def poses_cw(self) -> dict[int, np.ndarray]:
         return {k: s.pose1_cw for k, s in self.states.items()}
+
+
+def perturbed_pose(pose_cw: np.ndarray, perturbation: int, size: float = 1e-6) -> np.ndarray:
+    """``pose_cw`` [4, 4] moved by ``size`` rad about and ``size`` m along directions drawn
+    from seed ``perturbation`` (0: unchanged), left-multiplied as tracking's steps are."""
+    if perturbation == 0:
+        return pose_cw
+    rng = np.random.default_rng(perturbation)
+    twist = np.concatenate([rng.normal(size=3), rng.normal(size=3)])
+    twist[:3] *= size / np.linalg.norm(twist[:3])
+    twist[3:] *= size / np.linalg.norm(twist[3:])
+    return se3_exp(twist) @ pose_cw
 
 
 class SlamSystem:
@@ -172,7 +185,8 @@ class SlamSystem:
     # -------------------------------------------------------------------------------- phases
     def _initialise(self, report: Callable[[int, int], None] | None) -> _Keyframes:
         """Frame 0 at its ground-truth pose (``T_0 = T_tau``): insert it and build the map."""
-        gt0 = invert_pose(np.asarray(self.seq.poses[0], dtype=np.float64))
+        gt0 = perturbed_pose(invert_pose(np.asarray(self.seq.poses[0], dtype=np.float64)),
+                             self.cfg.runtime.perturbation)
         state0 = FrameState(0, gt0.copy(), gt0.copy())
         self.states.append(state0)
         obs0 = self.obs(0)

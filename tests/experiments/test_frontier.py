@@ -1,0 +1,34 @@
+"""``benchmarks/frontier.py``: budget labels (a perturbation run joins its budget's row), the
+table's mean and half-range over a budget's runs, and the figure."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from tests.helpers.bench_scripts import load_script
+
+fr = load_script("frontier")
+
+
+def _row(budget: str, seed: int, perturbation: int, ate: float, blends: float) -> dict:
+    return {"sequence": "demo-blur", "method": "egs", "budget": budget, "seed": seed,
+            "perturbation": perturbation, "frames": 24, "ate_cm": ate, "psnr_db": 25.0,
+            "ssim": 0.8, "lpips": 0.2, "blends_m_per_frame": blends,
+            "pixels_m_per_frame": 1.0, "cameras_per_frame": 100.0, "gaussians": 1000,
+            "keyframes": 5, "s_per_frame_after_init": 1.0}
+
+
+def test_a_perturbation_run_joins_its_budget() -> None:
+    assert fr._budget(Path("runs/demo/egs__e1/seed0"), {}) == "e1"
+    assert fr._budget(Path("runs/demo/egs__e1_p2/seed0"), {}) == "e1"
+    assert fr._budget(Path("runs/demo/egs/seed0"), {"preset": "cpu"}) == "cpu"
+
+
+def test_table_is_the_mean_and_half_range_over_runs(tmp_path: Path) -> None:
+    rows = [_row("e1", 0, 0, 1.0, 70.0), _row("e1", 0, 1, 2.0, 72.0),
+            _row("b05", 0, 0, 3.0, 80.0)]
+    lines = fr.table(rows).splitlines()
+    assert lines[2].startswith("| demo-blur | egs | e1 | 2 | 71.0 ± 1.0 | 1.50 ± 0.50 |")
+    assert lines[3].startswith("| demo-blur | egs | b05 | 1 | 80.0 | 3.00 |")
+    fr.figure(rows, tmp_path / "f.png")
+    assert (tmp_path / "f.png").stat().st_size > 10_000
