@@ -89,6 +89,11 @@ METRICS: dict[str, MetricSpec] = {
     "lpips": MetricSpec("lpips", "lpips", "LPIPS", 1.0, False, 3),
     "fps": MetricSpec("fps", "fps", "FPS", 1.0, True, 2),
     "render_fps": MetricSpec("render_fps", "render_fps", "Render FPS", 1.0, True, 1),
+    # the SLAM loop's speed without frame 0 (the map's initialisation), and frame 0's seconds:
+    # `fps` already leaves out the kernels' compilation (timing.json's compile_s)
+    "fps_after_init": MetricSpec("fps_after_init", "fps_after_init", "FPS after frame 0", 1.0,
+                                 True, 2),
+    "init_s": MetricSpec("init_s", "init_s", "Frame 0 [s]", 1.0, False, 1),
 }
 DEFAULT_METRICS = ("ate", "psnr", "ssim", "lpips")
 
@@ -190,9 +195,19 @@ def _check_text_files(run_dir: Path, names: tuple[str, ...]) -> None:
 
 def metric_values(metrics: RunMetrics) -> dict[str, float]:
     """Metric key of :data:`METRICS` -> value (stored unit), for the metrics a run has."""
+    speed = metrics.speed or {}
     out = {"ate": metrics.ate_rmse_m, "psnr": metrics.psnr_db, "ssim": metrics.ssim,
-           "lpips": metrics.lpips, "fps": metrics.fps, "render_fps": metrics.render_fps}
+           "lpips": metrics.lpips, "fps": metrics.fps, "render_fps": metrics.render_fps,
+           "fps_after_init": _finite(speed.get("fps_after_init")),
+           "init_s": _finite(speed.get("init_s"))}
     return {k: v for k, v in out.items() if v is not None}
+
+
+def _finite(value: Any) -> float | None:
+    """A finite number of a metrics file's section, else None (older files lack the field)."""
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        return None
+    return float(value) if math.isfinite(value) else None
 
 
 def _read_sweep_record(run_dir: Path) -> dict[str, Any]:

@@ -255,3 +255,26 @@ def test_a_signal_surfacing_inside_an_evaluation_stops_the_leaderboard(runs, mon
     monkeypatch.setattr(results, "_load_metrics", raise_sigterm_as_numba_does)
     with pytest.raises(Interrupted):
         leaderboard(runs, "md")
+
+
+def test_leaderboard_reports_frame_zero_apart_from_the_frame_rate(tmp_path) -> None:
+    """``--metrics fps,fps_after_init,init_s``: the loop's FPS (compile time excluded), the FPS
+    without frame 0 and frame 0's seconds, from metrics.json's speed section; a run whose file
+    predates the split has no value there."""
+    new = _run(tmp_path, "A", "s1", ate_m=0.01)
+    old = _run(tmp_path, "B", "s1", ate_m=0.02)
+    data = json.loads(new.metrics_path.read_text())
+    data["speed"] = {"fps": 0.5, "render_fps": 30.0, "init_s": 12.0, "fps_after_init": 0.8,
+                     "compile_s": 40.0}
+    new.metrics_path.write_text(json.dumps(data))
+    data = json.loads(old.metrics_path.read_text())
+    data["speed"] = {"fps": 0.25, "render_fps": 30.0}
+    old.metrics_path.write_text(json.dumps(data))
+    text = leaderboard(tmp_path, "csv", metrics=["fps", "fps_after_init", "init_s"],
+                       evaluate_missing=False)
+    df = pd.read_csv(io.StringIO(text)).set_index("method")
+    assert df.loc["A", "fps"] == 0.5 and df.loc["A", "fps_after_init"] == 0.8
+    assert df.loc["A", "init_s"] == 12.0
+    assert df.loc["B", "fps"] == 0.25 and np.isnan(df.loc["B", "init_s"])
+    md = leaderboard(tmp_path, "md", metrics=["fps_after_init", "init_s"], evaluate_missing=False)
+    assert "FPS after frame 0" in md and "Frame 0 [s]" in md
