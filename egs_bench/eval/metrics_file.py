@@ -50,6 +50,8 @@ class RunMetrics:
             computed, e.g. no renders, no sharp ground truth, no LPIPS weights).
         fps, render_fps: the method's frames per second and renders per second (None
             without ``timing.json``).
+        fps_after_init, init_s: frames per second without frame 0, and frame 0's seconds
+            (the map's initialisation); None in files written before the split.
         frames_processed, frames_in_sequence: the frames the run covers, of how many (None
             without a sequence, or in files that predate coverage).
         method, sequence, status: the run's identity and state when it was evaluated (None
@@ -82,6 +84,8 @@ class RunMetrics:
     rpe: Mapping[str, Any] | None
     rendering: Mapping[str, Any] | None
     speed: Mapping[str, Any] | None
+    fps_after_init: float | None = None
+    init_s: float | None = None
 
 
 def read_metrics(run_dir: str | Path) -> RunMetrics:
@@ -120,7 +124,8 @@ def parse_metrics(data: Any, where: Path) -> RunMetrics:
     rendering = _section(data, "rendering", "psnr_db", where)
     psnr_db, ssim, lpips = (_number(rendering, k, where) for k in ("psnr_db", "ssim", "lpips"))
     speed = _section(data, "speed", "fps", where)
-    fps, render_fps = (_number(speed, k, where) for k in ("fps", "render_fps"))
+    fps, render_fps, fps_after_init, init_s = (
+        _number(speed, k, where) for k in ("fps", "render_fps", "fps_after_init", "init_s"))
     done, total = _coverage(data.get("coverage"), where)
     run = data.get("run") or {}
     if not isinstance(run, Mapping):
@@ -144,7 +149,8 @@ def parse_metrics(data: Any, where: Path) -> RunMetrics:
         method=_text(run, "method", where), sequence=_text(run, "sequence", where),
         status=_text(run, "status", where),
         schema_version=version, notes=tuple(notes), tools=tools, protocol_settings=protocol,
-        ate=ate, rpe=rpe, rendering=rendering, speed=speed)
+        ate=ate, rpe=rpe, rendering=rendering, speed=speed, fps_after_init=fps_after_init,
+        init_s=init_s)
 
 
 def _is_int(value: Any) -> bool:

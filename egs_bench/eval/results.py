@@ -195,19 +195,10 @@ def _check_text_files(run_dir: Path, names: tuple[str, ...]) -> None:
 
 def metric_values(metrics: RunMetrics) -> dict[str, float]:
     """Metric key of :data:`METRICS` -> value (stored unit), for the metrics a run has."""
-    speed = metrics.speed or {}
     out = {"ate": metrics.ate_rmse_m, "psnr": metrics.psnr_db, "ssim": metrics.ssim,
            "lpips": metrics.lpips, "fps": metrics.fps, "render_fps": metrics.render_fps,
-           "fps_after_init": _finite(speed.get("fps_after_init")),
-           "init_s": _finite(speed.get("init_s"))}
+           "fps_after_init": metrics.fps_after_init, "init_s": metrics.init_s}
     return {k: v for k, v in out.items() if v is not None}
-
-
-def _finite(value: Any) -> float | None:
-    """A finite number of a metrics file's section, else None (older files lack the field)."""
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        return None
-    return float(value) if math.isfinite(value) else None
 
 
 def _read_sweep_record(run_dir: Path) -> dict[str, Any]:
