@@ -42,7 +42,7 @@ from egs_bench.datasets.registry import resolve_sequence  # noqa: E402
 from egs_bench.datasets.sequence import Sequence  # noqa: E402
 from egs_bench.geometry import invert_pose  # noqa: E402
 from egs_bench.slam import methods  # noqa: E402
-from egs_bench.slam.frames import FrameState  # noqa: E402
+from egs_bench.slam.frames import FrameObs, FrameState  # noqa: E402
 from egs_bench.slam.system import SlamSystem  # noqa: E402
 from egs_bench.slam.tracker import TrackRequest, predict_initial, track_frame  # noqa: E402
 
@@ -158,16 +158,23 @@ def _sync_device(device: str) -> None:
         torch.cuda.synchronize()
 
 
+def keyframe_at_truth(system: SlamSystem, seq: Sequence, index: int, downsample: int
+                      ) -> tuple[FrameState, FrameObs]:
+    """Frame ``index`` at its ground-truth pose (``T_0 = T_tau``), inserted into the map with
+    1 in ``downsample`` of its valid pixels: a keyframe without tracking error."""
+    pose = invert_pose(np.asarray(seq.poses[index], dtype=np.float64))
+    state, obs = FrameState(index, pose.copy(), pose.copy()), system.obs(index)
+    system.insert(obs, state, downsample, index)
+    return state, obs
+
+
 def measure(method: str, seq: Sequence, preset: str, device: str, iters: int,
             warmup: int) -> dict[str, object]:
     """Counts (and on CUDA, times) ``iters`` tracking and mapping iterations of ``method``."""
     cfg = methods.BUILTIN[method].config(preset).replace(init_iters=30, converged_threshold=0.0)
     system = SlamSystem(seq, cfg, device=device, seed=0)
     # A real map of frame 0 so the rasteriser sees realistic Gaussian counts.
-    gt0 = invert_pose(np.asarray(seq.poses[0], dtype=np.float64))
-    s0 = FrameState(0, gt0.copy(), gt0.copy())
-    obs0 = system.obs(0)
-    system.insert(obs0, s0, cfg.budget.pcd_downsample_init, 0)
+    s0, obs0 = keyframe_at_truth(system, seq, 0, cfg.budget.pcd_downsample_init)
     system.mapper.optimise({0: s0}, {0: obs0}, [0], [0], cfg.budget.init_iters, initial=True)
     obs1 = system.obs(1)
     t0, t1 = (int(v) for v in seq.exposure(1))
