@@ -7,7 +7,7 @@ the sweep setting in its folder name (``<method>__<setting>/seed<N>``; a ``_p<N>
 a perturbation run of the same budget, ``runtime.perturbation``), else its preset. Each budget's
 row is the mean and spread over its seeds and perturbations (the noise floor).
 
-    python benchmarks/frontier.py collect SWEEP_DIR... --out docs/notes/frontier_runs.csv
+    python benchmarks/frontier.py collect SWEEP_DIR... --out CSV [--overwrite]
     python benchmarks/frontier.py table docs/notes/frontier_runs.csv
     python benchmarks/frontier.py figure docs/notes/frontier_runs.csv --out docs/images/frontier.png
 """
@@ -16,11 +16,16 @@ from __future__ import annotations
 
 import argparse
 import csv
+import io
 import json
 import re
 import statistics
+import sys
 from collections import defaultdict
 from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from egs_bench.fileio import write_text_atomic
 
 COLUMNS = ("sequence", "method", "budget", "seed", "perturbation", "frames", "ate_cm",
            "psnr_db", "ssim", "lpips", "blends_m_per_frame", "pixels_m_per_frame",
@@ -79,11 +84,12 @@ def collect(roots: list[Path], out: Path) -> list[dict]:
                 rows.append(row)
     rows.sort(key=lambda r: (r["sequence"], r["method"], r["blends_m_per_frame"], r["seed"],
                              r["perturbation"]))
+    text = io.StringIO(newline="")
+    writer = csv.DictWriter(text, fieldnames=COLUMNS)
+    writer.writeheader()
+    writer.writerows(rows)
     out.parent.mkdir(parents=True, exist_ok=True)
-    with out.open("w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=COLUMNS)
-        writer.writeheader()
-        writer.writerows(rows)
+    write_text_atomic(out, text.getvalue())
     return rows
 
 
@@ -169,12 +175,16 @@ def main() -> None:
     c = sub.add_parser("collect")
     c.add_argument("roots", nargs="+", type=Path)
     c.add_argument("--out", type=Path, required=True)
+    c.add_argument("--overwrite", action="store_true", help="replace an existing --out file")
     t = sub.add_parser("table")
     t.add_argument("csv", type=Path)
     f = sub.add_parser("figure")
     f.add_argument("csv", type=Path)
     f.add_argument("--out", type=Path, required=True)
+    f.add_argument("--overwrite", action="store_true", help="replace an existing --out file")
     args = parser.parse_args()
+    if args.cmd in ("collect", "figure") and args.out.exists() and not args.overwrite:
+        parser.error(f"{args.out} exists; give --overwrite to replace it")
     if args.cmd == "collect":
         print(f"{len(collect(args.roots, args.out))} runs -> {args.out}")
     elif args.cmd == "table":

@@ -32,3 +32,20 @@ def test_table_is_the_mean_and_half_range_over_runs(tmp_path: Path) -> None:
     assert lines[3].startswith("| demo-blur | egs | b05 | 1 | 80.0 | 3.00 |")
     fr.figure(rows, tmp_path / "f.png")
     assert (tmp_path / "f.png").stat().st_size > 10_000
+
+
+def test_an_existing_output_is_kept_without_overwrite(tmp_path: Path) -> None:
+    import subprocess
+    import sys
+
+    out = tmp_path / "mine.csv"
+    out.write_text("a user's file\n")
+    script = Path(fr.__file__)
+    done = subprocess.run([sys.executable, str(script), "collect", str(tmp_path), "--out",
+                           str(out)], capture_output=True, text=True)
+    assert done.returncode == 2 and f"{out} exists; give --overwrite" in done.stderr
+    assert out.read_text() == "a user's file\n"
+    done = subprocess.run([sys.executable, str(script), "collect", str(tmp_path), "--out",
+                           str(out), "--overwrite"], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    assert out.read_text().startswith("sequence,method,budget,seed,perturbation")
