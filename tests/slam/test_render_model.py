@@ -185,3 +185,73 @@ def test_fixed_response_backward_matches_finite_differences(kind: str) -> None:
     generic = torch.addcmul(exp_ab[:, 1].view(-1, 1, 1, 1), crf.double()(hdr),
                             exp_ab[:, 0].exp().view(-1, 1, 1, 1))
     torch.testing.assert_close(respond(frozen, hdr, exp_ab), generic)
+
+
+def _srgb_by_hand(x: np.ndarray) -> np.ndarray:
+    """IEC 61966-2-1 encoding of linear values clipped to [0, 1] (float64)."""
+    c = np.clip(x, 0.0, 1.0)
+    return np.where(c <= 0.0031308, 12.92 * c, 1.055 * c ** (1 / 2.4) - 0.055)
+
+
+def _leaky_curve_by_hand(x: np.ndarray, nodes: np.ndarray, levels: np.ndarray,
+                         alpha: float) -> np.ndarray:
+    """The paper's leaky piecewise-linear CRF (float64): linear interpolation through the
+    nodes on [0, 1], slope ``alpha`` below 0, ``1 + alpha - alpha / sqrt(x)`` above 1."""
+    inside = np.interp(np.clip(x, 0.0, 1.0), nodes, levels)
+    high = 1 + alpha - alpha / np.sqrt(np.maximum(x, 1.0))
+    return np.where(x < 0, alpha * x, np.where(x > 1, high, inside))
+
+
+@pytest.mark.parametrize("kind", ["learnable", "srgb"])
+@pytest.mark.parametrize("tracking", [False, True], ids=["mapping", "tracking"])
+@pytest.mark.parametrize("with_exposure", [False, True], ids=["plain", "exposure"])
+def test_blurred_prediction_is_the_response_of_the_mean_linear_render(
+        kind: str, tracking: bool, with_exposure: bool) -> None:
+    """The predicted observation of a frame is ``exp(a) CRF(mean_k hdr_k) + b``: the K+1
+    sub-pose renders are averaged in linear light and then go through the (non-affine)
+    response, never the reverse. The observation is set to that prediction, computed here in
+    float64 from the sub-renders, so the photometric loss must vanish; averaging the
+    responses of the sub-renders instead leaves a mean error far above the tolerance."""
+    f64 = torch.float64
+    views, subposes, h, w = 2, 4, 5, 6
+    rng = np.random.default_rng(3)
+    # Sub-renders spread over [0.02, 1.4]: a blurred edge mixes dark and bright instants, and
+    # values above 1 reach the curve's saturating end.
+    hdr = rng.uniform(0.02, 1.4, size=(views, subposes, h, w, 3))
+    crf = make_crf(kind, 8, 0.01, "srgb").double()
+    if kind == "learnable":
+        with torch.no_grad():  # nodes away from the sRGB start: a generic monotone curve
+            crf.gap_logits.add_(torch.from_numpy(rng.normal(scale=0.5, size=7)))
+        nodes = crf.nodes().detach().numpy()
+        levels = crf.levels.numpy()  # 8 even steps, as the curve stores them (float32-rounded)
+
+        def response(x: np.ndarray) -> np.ndarray:
+            return _leaky_curve_by_hand(x, nodes, levels, 0.01)
+    else:
+        response = _srgb_by_hand
+    exp_ab = np.array([[0.2, 0.03], [-0.1, 0.05]]) if with_exposure else np.array([[0.0, 0.0]] * 2)
+    gain, offset = np.exp(exp_ab[:, 0])[:, None, None, None], exp_ab[:, 1][:, None, None, None]
+    expected = gain * response(hdr.mean(1)) + offset  # [V, H, W, 3]
+    response_averaged = gain * response(hdr).mean(1) + offset
+    assert np.abs(response_averaged - expected).mean() > 1e-2  # the data tells the two apart
+
+    cfg = cpu_preset().replace(lambda_id=1.0, lambda_i=1.0, lambda_d=1.0,
+                               exposure_compensation=with_exposure)
+    depth = torch.ones(subposes, h, w, dtype=f64)
+    res = _raster(torch.from_numpy(hdr.reshape(views * subposes, h, w, 3)),
+                  depth.repeat(views, 1, 1))
+    fractions = list(np.linspace(0.0, 1.0, subposes))
+
+    def photometric(observed: np.ndarray) -> float:
+        frames = [_obs(torch.from_numpy(observed[v]), depth[0], fractions) for v in range(views)]
+        assert all(bool(f.rgb_mask.all()) for f in frames)  # no pixel is masked out
+        targets = stack_targets([prepare_targets(f, cfg, (0.25, 0.25), tracking=tracking,
+                                                 use_events=False) for f in frames])
+        terms = blur_loss_terms(res, targets, crf.frozen() if tracking else crf,
+                                torch.from_numpy(exp_ab) if with_exposure else None, cfg,
+                                tracking=tracking, eps=1e-3)
+        return terms["photometric"].item()
+
+    assert photometric(expected) == pytest.approx(0.0, abs=1e-12)
+    # The loss is live: an observation 0.05 brighter everywhere costs 0.05 in each frame.
+    assert photometric(expected + 0.05) == pytest.approx(views * 0.05, rel=1e-9)
