@@ -53,6 +53,7 @@ from egs_bench.slam.context import SlamContext
 from egs_bench.slam.frames import FrameState
 from egs_bench.slam.mapper import Mapper
 from egs_bench.slam.runner import RunSettings, run_slam
+from egs_bench.slam.scheduling import MapRound
 from egs_bench.slam.tracker import GradientTracker, TrackRequest, TrackResult
 
 ERROR_COLUMNS = ("frame", "tau_cm", "tau_deg", "start_cm", "start_deg", "predicted_cm",
@@ -130,11 +131,18 @@ class TrueExposure0Mapper:
 
     def optimise(self, states, observations, window, all_keyframes, iterations, *,
                  initial=False, fixed_end_pose=0, report=None) -> float:
+        round_ = self.begin_round(states, observations, window, all_keyframes, iterations,
+                                  initial=initial, fixed_end_pose=fixed_end_pose, report=report)
+        round_.advance(iterations)
+        return round_.close()
+
+    def begin_round(self, states, observations, window, all_keyframes, iterations, *,
+                    initial=False, fixed_end_pose=0, report=None) -> MapRound:
         if initial and self.blur_model and 0 in states:
             states[0].pose0_cw = self.start_cw.copy()
-        return self.inner.optimise(states, observations, window, all_keyframes, iterations,
-                                   initial=initial, fixed_end_pose=fixed_end_pose,
-                                   report=report)
+        return self.inner.begin_round(states, observations, window, all_keyframes, iterations,
+                                      initial=initial, fixed_end_pose=fixed_end_pose,
+                                      report=report)
 
     def refine(self, states, observations, keyframes, iterations) -> float:
         return self.inner.refine(states, observations, keyframes, iterations)

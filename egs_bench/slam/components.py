@@ -23,6 +23,7 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
+from egs_bench.errors import ConfigError
 from egs_bench.render import GaussianMap
 from egs_bench.slam.context import SlamContext
 from egs_bench.slam.crf import CameraResponse
@@ -30,6 +31,7 @@ from egs_bench.slam.frames import FrameObs, FrameState
 from egs_bench.slam.keyframes import KeyframeCandidate, MonoGSKeyframes
 from egs_bench.slam.loss_terms import LOSS_TERMS, LossTerm
 from egs_bench.slam.mapper import Mapper
+from egs_bench.slam.scheduling import MapRound
 from egs_bench.slam.tracker import GradientTracker, TrackRequest, TrackResult
 
 
@@ -56,6 +58,14 @@ class MapOptimiser(Protocol):
         Returns the last loss."""
         ...
 
+    def begin_round(self, states: dict[int, FrameState], observations: dict[int, FrameObs],
+                    window: list[int], all_keyframes: list[int], iterations: int,
+                    *, initial: bool = False, fixed_end_pose: int | None = 0,
+                    report: Callable[[int, int], None] | None = None) -> MapRound:
+        """The round of :meth:`optimise` (same arguments) to be run in slices beside tracking
+        (``mapping.mapping_mode = "concurrent"``, :mod:`egs_bench.slam.scheduling`)."""
+        ...
+
     def refine(self, states: dict[int, FrameState], observations: dict[int, FrameObs],
                keyframes: list[int], iterations: int) -> float:
         """The final refinement after the last frame (``mapping.refine_iters`` > 0)."""
@@ -74,6 +84,21 @@ class KeyframePolicy(Protocol):
         """``(window with new_kf in front, removed keyframes)``; visibility bool [N] and
         world-to-camera poses [4, 4] by keyframe."""
         ...
+
+
+def check_part(part: object, protocol: type, role: str) -> None:
+    """Refuse a component that lacks a method of its protocol, before the run starts.
+
+    Raises:
+        ConfigError: naming the component, its role and the missing methods.
+    """
+    if isinstance(part, protocol):
+        return
+    needed = [name for name, value in vars(protocol).items()
+              if callable(value) and not name.startswith("_")]
+    missing = [name for name in needed if not callable(getattr(part, name, None))]
+    raise ConfigError(f"the {role} {type(part).__name__} is not a {protocol.__name__}: it has "
+                      f"no {', '.join(missing)}()")
 
 
 TrackerFactory = Callable[[SlamContext], Tracker]

@@ -16,6 +16,7 @@ from egs_bench.datasets.sequence_view import SequenceView
 from egs_bench.geometry import Intrinsics
 from egs_bench.render import GaussianMap
 from egs_bench.render.gaussian_map import FrozenGaussians
+from egs_bench.render.rasterize import RasterResult
 from egs_bench.render.work import counting
 from egs_bench.slam.config import SlamConfig
 from egs_bench.slam.frames import internal_intrinsics
@@ -97,7 +98,7 @@ class SlamContext:
         return self._levels[scale]
 
     def render(self, gmap: GaussianMap | FrozenGaussians, viewmats: torch.Tensor | np.ndarray,
-               *, phase: Phase, scale: float = 1.0, visibility: bool = False):
+               *, phase: Phase, scale: float = 1.0, visibility: bool = False) -> RasterResult:
         """Render world-to-camera ``viewmats`` [C, 4, 4] at ``scale`` x the internal
         resolution (see :func:`~egs_bench.slam.render_model.render_views`), booking the work
         into ``phase`` of the current frame (:attr:`work`)."""

@@ -14,6 +14,7 @@ differentiable monotone piecewise-linear curve with learnable knots.
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 import torch
@@ -153,13 +154,13 @@ class _CurveFunction(torch.autograd.Function):
     """A response with a hand-written backward from its precomputed derivative."""
 
     @staticmethod
-    def forward(ctx, hdr: torch.Tensor, curve: FrozenLeakyCurve) -> torch.Tensor:
+    def forward(ctx: Any, hdr: torch.Tensor, curve: FrozenLeakyCurve) -> torch.Tensor:
         value, slope = curve.value_and_slope(hdr)
         ctx.save_for_backward(slope)
         return value
 
     @staticmethod
-    def backward(ctx, grad: torch.Tensor):
+    def backward(ctx: Any, grad: torch.Tensor) -> tuple[torch.Tensor, None]:
         (slope,) = ctx.saved_tensors
         return grad * slope, None
 

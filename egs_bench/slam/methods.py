@@ -17,6 +17,7 @@ if TYPE_CHECKING:
     from egs_bench.datasets.sequence import Sequence
     from egs_bench.runs.folder import RunFolder
     from egs_bench.slam.components import SlamComponents
+    from egs_bench.slam.config import SlamConfig
 
 
 @dataclass
@@ -38,7 +39,7 @@ class ConfiguredSlamMethod:
     options: dict[str, Any] = field(default_factory=dict)
     components: SlamComponents | None = None
 
-    def config(self, preset: str = "paper", meta: dict[str, Any] | None = None):  # -> SlamConfig
+    def config(self, preset: str = "paper", meta: dict[str, Any] | None = None) -> SlamConfig:
         """The preset, then what the sequence's ``meta`` implies (real data: the paper's
         real-data values), then this method's own overrides, then its options."""
         from egs_bench.slam.config import preset as make_preset

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 import torch
@@ -22,6 +23,7 @@ from egs_bench.color import LUMA_BT601
 from egs_bench.render import GaussianMap
 from egs_bench.render import constants as RC
 from egs_bench.render.gaussian_map import FrozenGaussians
+from egs_bench.render.rasterize import RasterResult
 from egs_bench.slam.config import SlamConfig
 from egs_bench.slam.frames import FrameObs
 from egs_bench.slam.loss_terms import (
@@ -84,7 +86,7 @@ def stack_targets(targets: list[LossTargets]) -> LossTargets:
 
 def render_views(gmap: GaussianMap | FrozenGaussians, viewmats: torch.Tensor | np.ndarray,
                  K: torch.Tensor, width: int, height: int, cfg: SlamConfig, *,
-                 visibility: bool = False, eps2d: float = RC.EPS2D):
+                 visibility: bool = False, eps2d: float = RC.EPS2D) -> RasterResult:
     """Render world-to-camera ``viewmats`` [C, 4, 4] (any float dtype, tensor or array) with the
     map's dtype and device; returns the RasterResult (``visibility`` only when asked;
     ``eps2d``: the rasteriser's 2-D dilation, pixels^2)."""
@@ -96,7 +98,7 @@ def render_views(gmap: GaussianMap | FrozenGaussians, viewmats: torch.Tensor | n
                        backend=cfg.runtime.backend, visibility=visibility, eps2d=eps2d)
 
 
-def _rendered(res, targets: LossTargets, crf: Callable[[torch.Tensor], torch.Tensor],
+def _rendered(res: RasterResult, targets: LossTargets, crf: Callable[[torch.Tensor], torch.Tensor],
               exp_ab: torch.Tensor | None, cfg: SlamConfig, *, tracking: bool,
               eps: float) -> RenderedViews:
     v = targets.n_views
@@ -109,7 +111,7 @@ def _rendered(res, targets: LossTargets, crf: Callable[[torch.Tensor], torch.Ten
                          targets.luma_weights)
 
 
-def blur_loss(res, targets: LossTargets, crf: Callable[[torch.Tensor], torch.Tensor],
+def blur_loss(res: RasterResult, targets: LossTargets, crf: Callable[[torch.Tensor], torch.Tensor],
               exp_ab: torch.Tensor | None, cfg: SlamConfig, *, tracking: bool,
               eps: float) -> torch.Tensor:
     """Sum over the V frames and the loss terms (default: ``lambda_E L_E + lambda_ID
@@ -134,9 +136,9 @@ def blur_loss(res, targets: LossTargets, crf: Callable[[torch.Tensor], torch.Ten
     return torch.stack(values).sum() if len(values) != 1 else values[0]
 
 
-def blur_loss_terms(res, targets: LossTargets, crf: Callable[[torch.Tensor], torch.Tensor],
-                    exp_ab: torch.Tensor | None, cfg: SlamConfig, *, tracking: bool,
-                    eps: float) -> dict[str, torch.Tensor]:
+def blur_loss_terms(res: RasterResult, targets: LossTargets,
+                    crf: Callable[[torch.Tensor], torch.Tensor], exp_ab: torch.Tensor | None,
+                    cfg: SlamConfig, *, tracking: bool, eps: float) -> dict[str, torch.Tensor]:
     """The terms of :func:`blur_loss` (same arguments), summed over frames, for diagnostics:
     each term unweighted by its name (``photometric`` L_I, ``depth`` L_D, ``events``; a term
     whose weight is 0 is NaN), the event term's parts ``event_he`` and ``event_ne`` (means over
@@ -170,10 +172,24 @@ def respond(crf: Callable[[torch.Tensor], torch.Tensor], hdr: torch.Tensor,
     through autograd, so its parameters get gradients."""
     if exp_ab is None:
         return crf(hdr)
-    if hasattr(crf, "value_and_slope"):
-        return _FixedResponseWithExposure.apply(hdr, exp_ab, crf)
+    if isinstance(crf, FixedResponse):
+        out: torch.Tensor = _FixedResponseWithExposure.apply(hdr, exp_ab, crf)
+        return out
     ab = exp_ab.view(-1, 1, 1, 2)
     return torch.addcmul(ab[..., 1:], crf(hdr), ab[..., :1].exp())
+
+
+@runtime_checkable
+class FixedResponse(Protocol):
+    """A response without parameters that gives its derivative directly (tracking's frozen
+    curve, the identity)."""
+
+    def __call__(self, hdr: torch.Tensor) -> torch.Tensor:
+        ...
+
+    def value_and_slope(self, hdr: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor | None]:
+        """The response of ``hdr`` [...] and its slope [...] (None: 1 everywhere)."""
+        ...
 
 
 class _FixedResponseWithExposure(torch.autograd.Function):
@@ -182,7 +198,8 @@ class _FixedResponseWithExposure(torch.autograd.Function):
     autograd graph of the curve's branches)."""
 
     @staticmethod
-    def forward(ctx, hdr: torch.Tensor, exp_ab: torch.Tensor, crf) -> torch.Tensor:
+    def forward(ctx: Any, hdr: torch.Tensor, exp_ab: torch.Tensor, crf: FixedResponse
+                ) -> torch.Tensor:
         value, slope = crf.value_and_slope(hdr)
         gain = exp_ab[:, 0].exp().view(-1, 1, 1, 1)
         out = torch.addcmul(exp_ab[:, 1].view(-1, 1, 1, 1), value, gain)
@@ -190,7 +207,7 @@ class _FixedResponseWithExposure(torch.autograd.Function):
         return out
 
     @staticmethod
-    def backward(ctx, grad: torch.Tensor):
+    def backward(ctx: Any, grad: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, None]:
         out, d_hdr, b = ctx.saved_tensors
         # d/da = exp(a) f(h) = out - b; d/db = 1
         g_a = (grad * (out - b.view(-1, 1, 1, 1))).sum((1, 2, 3))

@@ -21,7 +21,7 @@ import math
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import Protocol
 
 import torch
 
@@ -36,6 +36,30 @@ class MapSnapshot:
 
     gmap: GaussianMap
     crf: CameraResponse
+
+
+class MapRound(Protocol):
+    """A mapping round run in slices (:meth:`~egs_bench.slam.components.MapOptimiser.begin_round`):
+    the map must not be edited from outside while it is open.
+
+    Attributes:
+        window: the keyframe window it optimises, newest first.
+    """
+
+    window: list[int]
+
+    @property
+    def remaining(self) -> int:
+        """Iterations left (0 once it has run them all or stopped on a non-finite loss)."""
+        ...
+
+    def advance(self, n: int) -> None:
+        """Run up to ``n`` more iterations."""
+        ...
+
+    def close(self) -> float:
+        """End the round (the built-in mapper prunes here); returns its last loss."""
+        ...
 
 
 def iterations_per_frame(mapping_iters: int, keyframe_interval: int,
@@ -59,9 +83,9 @@ class ConcurrentMapping:
     """
 
     def __init__(self, per_frame: int, device: torch.device,
-                 on_round_closed: Callable[[Any], None]) -> None:
+                 on_round_closed: Callable[[MapRound], None]) -> None:
         self.per_frame = per_frame
-        self.queue: list[Any] = []  # MappingRound, oldest first
+        self.queue: list[MapRound] = []  # oldest first
         self.on_round_closed = on_round_closed
         self.stream = torch.cuda.Stream(device) if device.type == "cuda" else None
         self._thread: threading.Thread | None = None
@@ -72,7 +96,7 @@ class ConcurrentMapping:
     def pending(self) -> bool:
         return bool(self.queue)
 
-    def submit(self, round_: Any) -> None:
+    def submit(self, round_: MapRound) -> None:
         """Queue a keyframe's round (begun after the keyframe's Gaussians were inserted, with
         :meth:`finish_queued` called before that insertion)."""
         self.queue.append(round_)

@@ -12,18 +12,24 @@ import numpy as np
 import torch
 
 from egs_bench.datasets.sequence_view import SequenceView
-from egs_bench.errors import ConfigError, InputError
+from egs_bench.errors import InputError
 from egs_bench.geometry import invert_pose
 from egs_bench.geometry.lie import se3_exp
 from egs_bench.interrupts import raise_if_interrupted
-from egs_bench.render import GaussianMap
-from egs_bench.slam.components import SlamComponents
+from egs_bench.render import GaussianMap, RasterResult
+from egs_bench.slam.components import (
+    KeyframePolicy,
+    MapOptimiser,
+    SlamComponents,
+    Tracker,
+    check_part,
+)
 from egs_bench.slam.config import SlamConfig
 from egs_bench.slam.context import SlamContext
 from egs_bench.slam.crf import CameraResponse, make_crf
 from egs_bench.slam.frames import FrameObs, FrameState, load_frame
 from egs_bench.slam.keyframes import KeyframeCandidate
-from egs_bench.slam.scheduling import ConcurrentMapping, iterations_per_frame
+from egs_bench.slam.scheduling import ConcurrentMapping, MapRound, iterations_per_frame
 from egs_bench.slam.tracker import TrackRequest, TrackResult, last_motion, predict_initial
 
 
@@ -109,12 +115,11 @@ class SlamSystem:
         self.tracker = parts.tracker(self.ctx)
         self.mapper = parts.mapper(self.ctx, self.gmap, self.crf, self.rng)
         self.keyframe_policy = parts.keyframes(self.ctx)
+        check_part(self.tracker, Tracker, "tracker")
+        check_part(self.mapper, MapOptimiser, "mapper")
+        check_part(self.keyframe_policy, KeyframePolicy, "keyframe policy")
         self.concurrent: ConcurrentMapping | None = None
         if cfg.mapping.mapping_mode == "concurrent":
-            if not hasattr(self.mapper, "begin_round"):
-                raise ConfigError("mapping_mode=concurrent needs a mapper with begin_round() "
-                                  f"(mapping rounds in slices); {type(self.mapper).__name__} "
-                                  "has none")
             per_frame = iterations_per_frame(cfg.budget.mapping_iters, cfg.keyframes.interval,
                                              cfg.budget.mapping_iters_per_frame)
             self.concurrent = ConcurrentMapping(per_frame, self.device, self._round_closed)
@@ -143,11 +148,15 @@ class SlamSystem:
                                         keyframe_id=kf_id, generator=self.gen)
 
     @torch.no_grad()
-    def _end_render(self, state: FrameState):
-        return self.ctx.render(self.gmap, state.pose1_cw[None], phase="selection",
-                               visibility=True)
+    def _end_render(self, state: FrameState) -> tuple[RasterResult, np.ndarray]:
+        """The render at ``state``'s ``T_tau`` and its visibility set (bool [N] over the
+        Gaussians)."""
+        res = self.ctx.render(self.gmap, state.pose1_cw[None], phase="selection",
+                              visibility=True)
+        assert res.visibility is not None  # asked for
+        return res, res.visibility[0].cpu().numpy()
 
-    def _uncovered(self, obs: FrameObs, res) -> torch.Tensor | None:
+    def _uncovered(self, obs: FrameObs, res: RasterResult) -> torch.Tensor | None:
         """The pixels of a new keyframe that its render at ``T_tau`` (``res``) does not
         explain yet (``budget.insertion = "uncovered"``), bool [H, W]; None: every pixel."""
         b = self.cfg.budget
@@ -158,10 +167,10 @@ class SlamSystem:
         return (alpha < b.insertion_alpha) | off
 
     def _visibility(self, state: FrameState) -> np.ndarray:
-        return self._end_render(state).visibility[0].cpu().numpy()
+        return self._end_render(state)[1]
 
     @staticmethod
-    def _median_depth(res) -> float:
+    def _median_depth(res: RasterResult) -> float:
         d, a = res.depth[0], res.alpha[0]
         sel = d[(d > 0) & (a > 0.95)]
         return float(sel.median()) if sel.numel() else 1.0
@@ -269,8 +278,7 @@ class SlamSystem:
                        report: Callable[[int, int], None] | None) -> bool:
         """Make frame ``i`` a keyframe if the policy wants it: insert Gaussians and run a
         mapping round on the updated window. Returns whether it became one."""
-        res = self._end_render(state)
-        vis = res.visibility[0].cpu().numpy()
+        res, vis = self._end_render(state)
         last = kfs.ids[-1]
         if not self.keyframe_policy.is_keyframe(KeyframeCandidate(
                 i, last, state.pose1_cw, kfs.states[last].pose1_cw, vis, kfs.visibility[last],
@@ -284,7 +292,7 @@ class SlamSystem:
             self.concurrent.finish_queued()  # an open round must not see the map change
         self.insert(obs, state, self.cfg.budget.pcd_downsample, i, self._uncovered(obs, res))
         if self.concurrent is not None:
-            self.concurrent.submit(self.mapper.begin_round(  # type: ignore[attr-defined]
+            self.concurrent.submit(self.mapper.begin_round(
                 kfs.states, kfs.observations, kfs.window, kfs.ids,
                 self.cfg.budget.mapping_iters))
         else:
@@ -301,7 +309,7 @@ class SlamSystem:
         for k in window:
             self._kfs.visibility[k] = self._visibility(self._kfs.states[k])
 
-    def _round_closed(self, round_) -> None:
+    def _round_closed(self, round_: MapRound) -> None:
         self._refresh_visibility(round_.window)
 
     # -------------------------------------------------------------------------------- main loop
@@ -315,7 +323,7 @@ class SlamSystem:
                 total)`` (``"map init"``: the mapping on frame 0, ``"mapping"``: a keyframe's
                 round), for progress displays.
         """
-        def phase(name: str):
+        def phase(name: str) -> Callable[[int, int], None] | None:
             return None if on_phase is None else (lambda done, total: on_phase(name, done, total))
 
         if n_frames < 1:

@@ -25,6 +25,7 @@ import torch
 from egs_bench.geometry import invert_pose
 from egs_bench.geometry.lie import se3_exp, so3_log, twist_gradient
 from egs_bench.render import GaussianMap
+from egs_bench.slam.config import MotionModel
 from egs_bench.slam.context import SlamContext
 from egs_bench.slam.convergence import ConvergenceTest
 from egs_bench.slam.crf import CameraResponse
@@ -213,7 +214,7 @@ class GradientTracker:
         return track_frame(self.ctx, gmap, crf, request)
 
 
-def last_motion(history: list[FrameState], motion_model: str, prev_end_us: int | None,
+def last_motion(history: list[FrameState], motion_model: MotionModel, prev_end_us: int | None,
                 prev_prev_end_us: int | None, prev_start_us: int | None = None
                 ) -> tuple[np.ndarray, int] | None:
     """The most recent estimated motion ``(relative pose [4, 4], its span in us)`` that the
@@ -232,7 +233,7 @@ def last_motion(history: list[FrameState], motion_model: str, prev_end_us: int |
     return None
 
 
-def predict_initial(index: int, history: list[FrameState], motion_model: str,
+def predict_initial(index: int, history: list[FrameState], motion_model: MotionModel,
                     t_start_us: int, t_end_us: int, prev_end_us: int | None,
                     prev_prev_end_us: int | None, prev_start_us: int | None = None
                     ) -> FrameState:

@@ -1,6 +1,6 @@
 """Never lose a user's data: what an output path may replace, command by command.
 
-Each test is a case of issue 12 that deleted or replaced something the tool did not create.
+Each test is a way an output path could delete or replace something the tool did not create.
 """
 
 from __future__ import annotations
@@ -49,7 +49,7 @@ def _ply(tmp_path: Path) -> Path:
     return path
 
 
-# ---------------------------------------------------------------- case 1: a folder became a file
+# ---------------------------------------------------------------- a folder became a file
 @pytest.mark.parametrize("command", ["show", "render-map", "render-demo", "leaderboard"])
 @pytest.mark.parametrize("overwrite", [False, True])
 def test_file_outputs_never_replace_a_folder(command, overwrite, tmp_path, tiny_sequence,
@@ -105,7 +105,7 @@ def test_atomic_writes_refuse_folders_and_leave_no_temporary_files(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out.txt"]
 
 
-# ---------------------------------------------------------------- case 2: run --out <finished run>
+# ---------------------------------------------------------------- run --out <finished run>
 def test_run_into_a_finished_run_needs_overwrite_and_keeps_user_files(tmp_path, room_sequence,
                                                                       capsys):
     out = tmp_path / "run"
@@ -134,7 +134,7 @@ def test_run_out_must_be_a_run_folder(tmp_path, tiny_sequence, capsys):
     assert _snapshot(user) == before
 
 
-# ---------------------------------------------------------------- case 4: the current directory,
+# ---------------------------------------------------------------- the current directory,
 # the input, a parent of the input
 def test_make_synthetic_never_replaces_the_current_directory(tmp_path, monkeypatch, capsys):
     work = _user_folder(tmp_path / "work")

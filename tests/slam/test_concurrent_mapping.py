@@ -121,7 +121,9 @@ def test_tracking_reads_a_snapshot_not_the_live_map(six_frames: Path) -> None:
     assert seen[3] == (False, True)  # a snapshot, unchanged while mapping ran
 
 
-def test_a_mapper_without_rounds_is_refused_for_concurrent_mode(tiny_sequence: Path) -> None:
+def test_a_mapper_without_rounds_is_refused_before_the_run(tiny_sequence: Path) -> None:
+    """Concurrent mapping runs a mapper's rounds in slices: a mapper without begin_round is
+    not a MapOptimiser and is refused when the system is built, in either mode."""
     class Plain:
         def __init__(self, *args) -> None:
             pass
@@ -132,9 +134,11 @@ def test_a_mapper_without_rounds_is_refused_for_concurrent_mode(tiny_sequence: P
         def refine(self, *args, **kwargs) -> float:
             return 0.0
 
-    with pytest.raises(ConfigError, match="mapping_mode=concurrent needs a mapper"):
-        SlamSystem(Sequence.open(tiny_sequence), _config("concurrent"),
-                   components=SlamComponents(mapper=Plain))
+    for mode in ("concurrent", "sequential"):
+        with pytest.raises(ConfigError, match=r"the mapper Plain is not a MapOptimiser: it "
+                                              r"has no begin_round\(\)"):
+            SlamSystem(Sequence.open(tiny_sequence), _config(mode),
+                       components=SlamComponents(mapper=Plain))
 
 
 def test_a_signal_during_a_mapping_slice_stops_the_run_marked_interrupted(

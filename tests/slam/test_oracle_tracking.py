@@ -97,16 +97,34 @@ def test_oracle_until_keeps_the_trackers_estimates_after_n_and_records_errors() 
         assert float(r["predicted_deg"]) == pytest.approx(0.5, abs=1e-4)
 
 
+class _EmptyRound:
+    """A mapping round with no iterations."""
+
+    def __init__(self, window: list[int]) -> None:
+        self.window = window
+        self.remaining = 0
+
+    def advance(self, n: int) -> None:
+        pass
+
+    def close(self) -> float:
+        return 0.0
+
+
 class _RecordingMapper:
-    """A map optimiser that records frame 0's exposure start at each call."""
+    """A map optimiser that records frame 0's exposure start at each round."""
 
     def __init__(self) -> None:
         self.seen: list[np.ndarray] = []
 
     def optimise(self, states, observations, window, all_keyframes, iterations, *,
                  initial=False, fixed_end_pose=0, report=None) -> float:
+        return self.begin_round(states, observations, window, all_keyframes, iterations).close()
+
+    def begin_round(self, states, observations, window, all_keyframes, iterations, *,
+                    initial=False, fixed_end_pose=0, report=None) -> _EmptyRound:
         self.seen.append(states[0].pose0_cw.copy())
-        return 0.0
+        return _EmptyRound(window)
 
     def refine(self, states, observations, keyframes, iterations) -> float:
         return 0.0
