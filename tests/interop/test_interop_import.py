@@ -260,13 +260,14 @@ def test_monogs_ply_is_rendered_at_the_imported_poses(seq: Sequence, export: Pat
 
     from egs_bench.eval.image_metrics import psnr
     from egs_bench.render.gaussian_map import GaussianMap
+    from egs_bench.render.ply import save_ply
 
     est = _monogs_result(tmp_path / "mono", seq, uids=(0, 4, 9))
     gmap = GaussianMap.empty()
     gmap.add_from_depth(seq.rgb(0) / 255.0, seq.depth(0), seq.intrinsics, est[0], downsample=1,
                         point_size=0.1, opacity=0.99, generator=torch.Generator().manual_seed(0))
     (tmp_path / "mono" / "point_cloud" / "final").mkdir(parents=True)
-    gmap.save_ply(tmp_path / "mono" / "point_cloud" / "final" / "point_cloud.ply")
+    save_ply(gmap, tmp_path / "mono" / "point_cloud" / "final" / "point_cloud.ply")
     run = import_external_run(tmp_path / "mono", tmp_path / "run", fmt="monogs",
                               export_dir=export, render_ply=True)
     assert run.render_indices() == [0, 4, 9] and run.estimate["renders"] == "keyframes"

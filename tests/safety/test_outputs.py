@@ -38,13 +38,14 @@ def _ply(tmp_path: Path) -> Path:
 
     from egs_bench.geometry import Intrinsics
     from egs_bench.render import GaussianMap
+    from egs_bench.render.ply import save_ply
 
     gmap = GaussianMap.empty()
     gmap.add_from_depth(np.full((12, 16, 3), 0.5, np.float32), np.full((12, 16), 2.0, np.float32),
                         Intrinsics(15.0, 15.0, 8, 6, 16, 12), np.eye(4), downsample=2,
                         point_size=1.0, generator=torch.Generator().manual_seed(0))
     path = tmp_path / "map.ply"
-    gmap.save_ply(path)
+    save_ply(gmap, path)
     return path
 
 

@@ -17,7 +17,7 @@ import egs_bench.cli.render_cmds  # noqa: F401  (registers the commands)
 from egs_bench.cli.app import app
 from egs_bench.errors import ConfigError, InputError
 from egs_bench.eval.image_metrics import psnr
-from egs_bench.render.ply import SH_C0, read_ply
+from egs_bench.render.ply import SH_C0, read_ply, save_ply
 from egs_bench.runs.folder import RunFolder
 from egs_bench.slam.appearance import read_appearance
 from egs_bench.slam.crf import LeakyPiecewiseLinearCRF, crf_from_dict, crf_to_dict, make_crf
@@ -353,7 +353,7 @@ def test_export_reproduces_a_straight_crf(tmp_path, kind) -> None:
     from egs_bench.slam.appearance import Appearance, ldr8, write_appearance
 
     gmap, camera = _hdr_scene()
-    gmap.save_ply(tmp_path / "map.ply")
+    save_ply(gmap, tmp_path / "map.ply")
     crf = make_crf(kind, 16, init="linear")
     write_appearance(tmp_path / "appearance.json", Appearance(
         crf, camera, 0.2, np.arange(1), np.zeros(1), np.zeros(1), np.zeros(1)))
