@@ -4,6 +4,7 @@ visual check."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -29,7 +30,7 @@ def synthetic_rgbd(width: int = 224, height: int = 128) -> tuple[np.ndarray, np.
     best = np.full((height, width), np.inf)
     rgb = np.zeros((height, width, 3))
 
-    def plane(axis: int, value: float, colour_fn) -> None:
+    def plane(axis: int, value: float, colour_fn: Callable[[np.ndarray], np.ndarray]) -> None:
         with np.errstate(divide="ignore", invalid="ignore"):
             t = value / d[..., axis]
         hit = (t > 0) & (t < best)
@@ -37,7 +38,8 @@ def synthetic_rgbd(width: int = 224, height: int = 128) -> tuple[np.ndarray, np.
         best[hit] = t[hit]
         rgb[hit] = colour_fn(p[hit])
 
-    def checker(p: np.ndarray, a: int, b: int, c0, c1) -> np.ndarray:
+    def checker(p: np.ndarray, a: int, b: int, c0: tuple[float, float, float],
+                c1: tuple[float, float, float]) -> np.ndarray:
         k = (np.floor(p[:, a] * 2) + np.floor(p[:, b] * 2)) % 2
         return np.where(k[:, None] > 0, np.array(c0), np.array(c1))
 
