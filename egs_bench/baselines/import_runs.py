@@ -531,10 +531,10 @@ def _render_ply(ply: Path, poses_wc: np.ndarray, intrinsics: Intrinsics) -> list
     MonoGS trains them on the 8-bit frames (no transfer curve applied), clipped to [0, 1]."""
     import torch
 
-    from egs_bench.render.gaussian_map import GaussianMap
+    from egs_bench.render.ply import load_ply
     from egs_bench.render.rasterize import rasterize
 
-    gmap = GaussianMap.load_ply(ply)
+    gmap = load_ply(ply)
     K = torch.tensor(intrinsics.K[None], dtype=gmap.dtype)
     out = []
     with torch.no_grad():

@@ -116,11 +116,12 @@ def render_demo_cmd(
     """Build a Gaussian map from a synthetic RGB-D view and render it (a visual self-check)."""
     from egs_bench.outputs import prepare_output
     from egs_bench.render.demo import render_demo
+    from egs_bench.render.ply import save_ply
 
     prepare_output(out, "png", overwrite=overwrite)
     if ply:
         prepare_output(ply, "ply", overwrite=overwrite, option="--ply")
     gmap = render_demo(out)
     if ply:
-        gmap.save_ply(ply)
+        save_ply(gmap, ply)
     typer.echo(f"{len(gmap)} Gaussians rendered -> {out}")

@@ -287,7 +287,7 @@ def _compiles(source: LatentSource) -> bool:
     """Whether the first frame will compile numba kernels: the event simulator's, or those of
     the source's own package (``egs_bench.datasets.synthetic``, ``...eventreplica``), are not
     in numba's cache."""
-    from egs_bench.warmup import uncached_kernels
+    from egs_bench.kernel_cache import uncached_kernels
 
     package = type(source).__module__.rsplit(".", 1)[0]
     return bool(uncached_kernels("egs_bench.datasets.esim_kernels")

@@ -10,6 +10,9 @@ When a method was run with several settings, each row is labelled with the confi
 that differ between them (``egs (loss.lambda_d=0.05)``), or with the name a sweep gave the settings.
 A run whose settings could not be read (an unreadable ``config.yaml``) takes no part in that
 comparison: it forms its own row, ``egs (settings unreadable)``, whose cells are footnoted.
+
+:func:`results_frame` is the long-format table of the same runs, one row per run, labelled the
+same way.
 """
 
 from __future__ import annotations
@@ -23,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from egs_bench.eval.results import EVALUATED, RunResult
+from egs_bench.eval.results import EVALUATED, METRICS, ResultSet, RunResult
 
 MAX_LABEL_KEYS = 3
 LOST = "L"
@@ -194,3 +197,34 @@ def cell_notes(row: RowKey, sequence: str, cell: Cell | None) -> list[str]:
         if count > 1:
             notes.append(f"{what}: {count} runs share seed {seed}; all are counted")
     return notes
+
+
+def results_frame(results: ResultSet, metrics: tuple[str, ...] | list[str] = tuple(METRICS)):
+    """Long-format table: one row per run, metric columns in stored units, a status column.
+
+    Columns: ``method, settings, sequence, seed, status, frames_processed, frames_in_sequence``,
+    one column per metric named with its unit (``ate_rmse_m``, ``psnr_db``, ``ssim``, ``lpips``,
+    ``fps``), ``reason`` and ``run``. Metric columns are float (NaN where there is no value), so
+    a tracking loss never turns a column into strings.
+    """
+    import pandas as pd
+
+    labels = row_labels(results.runs)
+    rows = []
+    for r in results.runs:
+        row: dict[str, object] = {
+            "method": r.method, "settings": labels.get(r.path, ""), "sequence": r.sequence,
+            "seed": r.seed, "status": r.status, "frames_processed": r.frames_processed,
+            "frames_in_sequence": r.frames_in_sequence}
+        for key in metrics:
+            v = r.values.get(key) if r.status in EVALUATED else None
+            row[METRICS[key].column] = math.nan if v is None else v
+        row["reason"] = r.reason or ""
+        row["run"] = r.rel
+        rows.append(row)
+    df = pd.DataFrame(rows)
+    for col in ("seed", "frames_processed", "frames_in_sequence"):
+        df[col] = df[col].astype("Int64")
+    for key in metrics:
+        df[METRICS[key].column] = df[METRICS[key].column].astype(float)
+    return df

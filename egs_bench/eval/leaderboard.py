@@ -28,14 +28,22 @@ import numpy as np
 import pandas as pd
 
 from egs_bench.errors import ConfigError
-from egs_bench.eval.grouping import LOST, MISSING, Cell, RowKey, Stat, cell_notes, group_runs
+from egs_bench.eval.grouping import (
+    LOST,
+    MISSING,
+    Cell,
+    RowKey,
+    Stat,
+    cell_notes,
+    group_runs,
+    results_frame,
+)
 from egs_bench.eval.protocols import DEFAULT_PROTOCOL
 from egs_bench.eval.results import (
     DEFAULT_METRICS,
     METRICS,
     ResultSet,
     collect_results,
-    results_frame,
 )
 from egs_bench.eval.tables import (
     common_n,
@@ -278,7 +286,7 @@ def render_latex(board: Leaderboard, by: str = "sequence", caption: str | None =
 
 
 def render_csv(board: Leaderboard, by: str = "sequence") -> str:
-    """Long-format CSV: one row per run (see :func:`egs_bench.eval.results.results_frame`)."""
+    """Long-format CSV: one row per run (see :func:`egs_bench.eval.grouping.results_frame`)."""
     assert board.results is not None
     df = results_frame(board.results, board.metrics)
     return df.to_csv(index=False, lineterminator="\n")

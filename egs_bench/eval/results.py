@@ -27,7 +27,6 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -307,36 +306,3 @@ def collect_results(runs_root: str | Path, protocol: str = DEFAULT_PROTOCOL,
         raise InputError(root, "holds no run folders (no run.yaml found)")
     return ResultSet(root, [read_run_result(p, root, protocol, evaluate_missing) for p in paths],
                      protocol)
-
-
-def results_frame(results: ResultSet, metrics: tuple[str, ...] | list[str] = tuple(METRICS)):
-    """Long-format table: one row per run, metric columns in stored units, a status column.
-
-    Columns: ``method, settings, sequence, seed, status, frames_processed, frames_in_sequence``,
-    one column per metric named with its unit (``ate_rmse_m``, ``psnr_db``, ``ssim``, ``lpips``,
-    ``fps``), ``reason`` and ``run``. Metric columns are float (NaN where there is no value), so
-    a tracking loss never turns a column into strings.
-    """
-    import pandas as pd
-
-    from egs_bench.eval.grouping import row_labels
-
-    labels = row_labels(results.runs)
-    rows = []
-    for r in results.runs:
-        row: dict[str, object] = {
-            "method": r.method, "settings": labels.get(r.path, ""), "sequence": r.sequence,
-            "seed": r.seed, "status": r.status, "frames_processed": r.frames_processed,
-            "frames_in_sequence": r.frames_in_sequence}
-        for key in metrics:
-            v = r.values.get(key) if r.status in EVALUATED else None
-            row[METRICS[key].column] = math.nan if v is None else v
-        row["reason"] = r.reason or ""
-        row["run"] = r.rel
-        rows.append(row)
-    df = pd.DataFrame(rows)
-    for col in ("seed", "frames_processed", "frames_in_sequence"):
-        df[col] = df[col].astype("Int64")
-    for key in metrics:
-        df[METRICS[key].column] = df[METRICS[key].column].astype(float)
-    return df

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from egs_bench.errors import ConfigError
-from egs_bench.experiments.spec import STATE_DIR, LocalOptions, RunSpec, SlurmOptions
+from egs_bench.experiments.spec import LocalOptions, RunSpec, SlurmOptions
 from egs_bench.experiments.worker import (
     EXIT_BUSY,
     EXIT_DONE,
@@ -39,6 +39,7 @@ from egs_bench.experiments.worker import (
 )
 from egs_bench.fileio import write_text_atomic
 from egs_bench.interrupts import raise_if_interrupted, signals_interrupt
+from egs_bench.runs.locations import STATE_DIR
 
 TERM_GRACE_S = 30.0
 _THREAD_VARS = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS", "NUMBA_NUM_THREADS",

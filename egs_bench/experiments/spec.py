@@ -39,9 +39,8 @@ from typing import Any
 import yaml
 
 from egs_bench.errors import ConfigError, InputError
+from egs_bench.runs.locations import RUNS_DIR
 
-RUNS_DIR = "runs"
-STATE_DIR = ".sweep"  # locks, worker specs and launcher logs of a sweep
 DEVICES = ("cpu", "cuda")
 _KEYS = {"methods", "sequences", "seeds", "preset", "device", "max_frames", "set", "settings",
          "protocol", "out", "local", "slurm", "name"}

@@ -37,10 +37,9 @@ from egs_bench.experiments.worker import (
 )
 from egs_bench.fileio import DISK_FULL, write_text_atomic
 from egs_bench.runs.folder import RunFolder
+from egs_bench.runs.locations import SUMMARY_CSV, SUMMARY_MD
 
 BACKENDS = ("local", "slurm")
-SUMMARY_CSV = "sweep_summary.csv"
-SUMMARY_MD = "sweep_summary.md"
 DONE_STATES = ("done",)
 
 

@@ -44,11 +44,12 @@ from typing import Any
 from egs_bench.errors import EgsBenchError, interruption_reason, reraise_interruption
 from egs_bench.eval.metrics_file import read_metrics
 from egs_bench.eval.results import SWEEP_RECORD_FILE
-from egs_bench.experiments.spec import STATE_DIR, RunSpec
+from egs_bench.experiments.spec import RunSpec
 from egs_bench.fileio import FileLock, owner_note, write_text_atomic
 from egs_bench.fileio import lock_is_held as _file_lock_is_held
 from egs_bench.interrupts import raise_if_interrupted, signals_interrupt
 from egs_bench.outputs import RUN_PRELUDE_FILES
+from egs_bench.runs.locations import STATE_DIR
 
 WORKER_LOG = "worker.log"
 # how long a starting worker keeps trying for its run's lock: a status probe (``egs-bench sweep

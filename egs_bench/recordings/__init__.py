@@ -15,12 +15,10 @@ from egs_bench.recordings.calib import RecordingCalib, dump_calib, load_calib
 from egs_bench.recordings.camera import CameraModel
 from egs_bench.recordings.depth import reproject_depth, warp_to_depth_camera
 from egs_bench.recordings.importer import RecordingSpec, apply_preset, import_recording
-from egs_bench.recordings.params import REAL_DATA_SLAM, sequence_slam_defaults
 from egs_bench.recordings.presets import PRESETS, RecordingPreset, get_preset
 
 __all__ = [
     "PRESETS",
-    "REAL_DATA_SLAM",
     "CameraModel",
     "RecordingCalib",
     "RecordingPreset",
@@ -31,6 +29,5 @@ __all__ = [
     "import_recording",
     "load_calib",
     "reproject_depth",
-    "sequence_slam_defaults",
     "warp_to_depth_camera",
 ]

@@ -4,7 +4,8 @@
   gradients to every Gaussian parameter and to the world-to-camera matrices; backends
   "numba" (CPU tile kernels), "gsplat" (CUDA) and "reference" (dense PyTorch oracle).
 * :class:`GaussianMap` holds the optimisable parameters, inserts Gaussians from depth
-  images, prunes, and saves/loads standard 3DGS ``.ply`` files.
+  images and prunes; :mod:`egs_bench.render.ply` saves and loads it as a standard 3DGS
+  ``.ply`` file.
 * :mod:`egs_bench.render.constants` is the per-pixel rule shared by all backends.
 """
 

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -234,20 +233,6 @@ class GaussianMap:
         )
         self.append(new)
         return n
-
-    # ---------------------------------------------------------------- files
-    def save_ply(self, path: str | Path) -> None:
-        """Write a standard 3DGS ``.ply`` (see :mod:`egs_bench.render.ply`)."""
-        from egs_bench.render.ply import save_ply
-
-        save_ply(self, path)
-
-    @classmethod
-    def load_ply(cls, path: str | Path, dtype: torch.dtype = torch.float32) -> GaussianMap:
-        """Read a 3DGS ``.ply`` written by :meth:`save_ply` or by 3DGS-style trainers."""
-        from egs_bench.render.ply import load_ply
-
-        return load_ply(path, dtype)
 
 
 @dataclass(frozen=True)

@@ -18,8 +18,6 @@ from egs_bench.eval.metrics_file import RunMetrics, read_metrics
 from egs_bench.eval.protocols import DEFAULT_PROTOCOL, get_protocol
 from egs_bench.eval.results import METRICS, RunResult, collect_results
 from egs_bench.eval.tables import slug
-from egs_bench.experiments.spec import STATE_DIR
-from egs_bench.experiments.sweep import SUMMARY_CSV
 from egs_bench.runs.folder import (
     METRICS_FILE,
     RunFolder,
@@ -28,6 +26,7 @@ from egs_bench.runs.folder import (
     find_runs,
     read_json_object,
 )
+from egs_bench.runs.locations import STATE_DIR, SUMMARY_CSV
 
 #: ``slam_stats.json`` (written by the built-in SLAM runner next to the map).
 SLAM_STATS_FILE = "slam_stats.json"

@@ -35,7 +35,7 @@ A typical method run::
         run.write_trajectory(seq.timestamps_s, est_poses)
         run.write_keyframes(keyframe_ids)
         run.write_timing(total_wall_s=..., per_frame_s=..., render_fps=...)
-        gmap.save_ply(run.artifact_path("map.ply"))
+        save_ply(gmap, run.artifact_path("map.ply"))
         run.mark_done()
 """
 

@@ -42,8 +42,8 @@ class ConfiguredSlamMethod:
     def config(self, preset: str = "paper", meta: dict[str, Any] | None = None) -> SlamConfig:
         """The preset, then what the sequence's ``meta`` implies (real data: the paper's
         real-data values), then this method's own overrides, then its options."""
-        from egs_bench.recordings.params import sequence_slam_defaults
         from egs_bench.slam.config import preset as make_preset
+        from egs_bench.slam.sequence_defaults import sequence_slam_defaults
 
         base = make_preset(preset).with_groups(self.config_classes())
         base = base.replace(**sequence_slam_defaults(meta or {}))

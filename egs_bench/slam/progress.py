@@ -20,10 +20,10 @@ class PhaseProgress:
 
     Args:
         kernels_ready: whether the renderer's compiled kernels are in this process (e.g.
-            :func:`egs_bench.render.numba_backend.kernels_ready`; None: nothing compiles).
+            :func:`egs_bench.render.cpu_kernels.kernels_ready`; None: nothing compiles).
         clock: seconds of a monotonic clock.
         cold_cache: whether numba's cache lacks renderer kernels, asked once, when kernels
-            are first found missing (default: :func:`egs_bench.warmup.uncached_kernels`).
+            are first found missing (default: :func:`egs_bench.kernel_cache.uncached_kernels`).
     """
 
     def __init__(self, kernels_ready: Callable[[], bool] | None = None,
@@ -57,6 +57,6 @@ class PhaseProgress:
 
 
 def _render_kernels_uncached() -> bool:
-    from egs_bench.warmup import uncached_kernels
+    from egs_bench.kernel_cache import uncached_kernels
 
     return bool(uncached_kernels("egs_bench.render"))

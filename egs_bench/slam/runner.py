@@ -15,8 +15,9 @@ from egs_bench.errors import ConfigError, InputError
 from egs_bench.fileio import write_text_atomic
 from egs_bench.geometry import invert_pose
 from egs_bench.progress import ProgressBar
-from egs_bench.render import numba_backend
-from egs_bench.render.numba_backend import kernels_ready
+from egs_bench.render import cpu_kernels
+from egs_bench.render.cpu_kernels import kernels_ready
+from egs_bench.render.ply import save_ply
 from egs_bench.render.rasterize import resolve_backend
 from egs_bench.runs.folder import RunFolder
 from egs_bench.slam.appearance import APPEARANCE_FILE, MAP_FILE, Appearance, ldr8, write_appearance
@@ -109,11 +110,11 @@ def run_slam(seq: SequenceView, out: str | Path, *, method_name: str, config: Sl
         # gives compile_s apart, so a cold cache does not lower the run's frame rate.
         t_compile = time.perf_counter()
         if resolve_backend(config.runtime.backend, system.device) == "numba":
-            from egs_bench.warmup import uncached_kernels
+            from egs_bench.kernel_cache import uncached_kernels
 
             if not kernels_ready() and uncached_kernels("egs_bench.render"):
                 bar.set_postfix_str(COMPILING)  # only when numba's cache lacks them
-            numba_backend.prepare_kernels()
+            cpu_kernels.prepare_kernels()
         compile_s = time.perf_counter() - t_compile
         t_start = time.perf_counter()
         run.set_progress(0, n)
@@ -148,7 +149,7 @@ def run_slam(seq: SequenceView, out: str | Path, *, method_name: str, config: Sl
         run.write_timing(total_wall_s=total_wall,
                          per_frame_s=[r.wall_s for r in result.reports], render_fps=render_fps,
                          compile_s=compile_s)
-        result.gmap.save_ply(run.artifact_path(MAP_FILE))
+        save_ply(result.gmap, run.artifact_path(MAP_FILE))
         write_appearance(run.artifact_path(APPEARANCE_FILE), Appearance(
             system.crf, seq.intrinsics, config.mapping.near_plane,
             np.array([s.index for s in result.states]),

@@ -1,4 +1,4 @@
-"""Sharp edges of the command line (issue 36, items 1, 7, 9, 12): paths and values are printed
+"""Sharp edges of the command line: paths and values are printed
 as they are (never read as rich markup), every option is checked where it is parsed with one
 line naming it, and the commands agree with each other and with the command table of README.md."""
 
@@ -127,7 +127,7 @@ def test_library_messages_keep_their_brackets(monkeypatch, capsys) -> None:
                      "backend 'gsplat' needs gsplat 1.5.3: pip install 'egs-bench[cuda]'")
 
 
-# ------------------------------------------------------------------ item 7: option values
+# ------------------------------------------------------------------ option values
 @pytest.mark.parametrize("argv,option", [
     (["make-synthetic", "-s", "office", "-o", "o", "--seed", "-1"], "--seed"),
     (["run", "-m", "monogs", "-s", "x", "--seed", "-1"], "--seed"),
@@ -181,7 +181,7 @@ def test_a_file_that_is_not_pytorch_weights_is_named_without_unsafe_advice(
     assert "weights_only" not in assert_cli_error(code, err, 3, weights)
 
 
-# ------------------------------------------------------------------ item 9: make-calib
+# ------------------------------------------------------------------ make-calib
 def test_make_calib_overwrite_replaces_only_with_the_flag(tmp_path, capsys) -> None:
     out = tmp_path / "calib.yaml"
     out.write_text("mine: 1\n")
@@ -194,7 +194,7 @@ def test_make_calib_overwrite_replaces_only_with_the_flag(tmp_path, capsys) -> N
     assert yaml.safe_load(out.read_text())["depth_camera"] == "event"
 
 
-# ------------------------------------------------------------------ item 12: consistency
+# ------------------------------------------------------------------ consistency
 def test_help_lists_choices_and_shows_no_bool_type(capsys) -> None:
     code, out, _ = run_cli(capsys, "ate", "--help")
     assert code == 0 and "[se3|sim3|none]" in out and "<bool>" not in out, out

@@ -133,7 +133,7 @@ def test_leaderboard_settings_rows_and_partial_runs_never_ranked(tmp_path) -> No
 
 
 def test_leaderboard_broken_run_folders_are_footnotes(runs) -> None:
-    """Issue 12 case 5: binary run.yaml / status.json / trajectory.txt and wrongly typed
+    """Binary run.yaml / status.json / trajectory.txt and wrongly typed
     metrics.json each become a footnote naming the file; the table still prints."""
     _run(runs, "D", "s1", 0.005, 40.0, 0.99, 0.01)  # D has no run on s2
     failed = RunFolder.create(runs / "s1" / "E", method="E", sequence_name="s1",

@@ -260,13 +260,14 @@ def test_monogs_ply_is_rendered_at_the_imported_poses(seq: Sequence, export: Pat
 
     from egs_bench.eval.image_metrics import psnr
     from egs_bench.render.gaussian_map import GaussianMap
+    from egs_bench.render.ply import save_ply
 
     est = _monogs_result(tmp_path / "mono", seq, uids=(0, 4, 9))
     gmap = GaussianMap.empty()
     gmap.add_from_depth(seq.rgb(0) / 255.0, seq.depth(0), seq.intrinsics, est[0], downsample=1,
                         point_size=0.1, opacity=0.99, generator=torch.Generator().manual_seed(0))
     (tmp_path / "mono" / "point_cloud" / "final").mkdir(parents=True)
-    gmap.save_ply(tmp_path / "mono" / "point_cloud" / "final" / "point_cloud.ply")
+    save_ply(gmap, tmp_path / "mono" / "point_cloud" / "final" / "point_cloud.ply")
     run = import_external_run(tmp_path / "mono", tmp_path / "run", fmt="monogs",
                               export_dir=export, render_ply=True)
     assert run.render_indices() == [0, 4, 9] and run.estimate["renders"] == "keyframes"
@@ -390,7 +391,7 @@ def test_cli_import_run(seq: Sequence, export: Path, tmp_path: Path, capsys) -> 
     assert_cli_error(code, capsys.readouterr().err, 2, "--from tum needs --method and --sequence")
 
 
-# ---------------------------------------------------------------- validation at import (issue 36)
+# ---------------------------------------------------------------- validation at import
 def _no_leftovers(folder: Path) -> bool:
     return not [p for p in folder.iterdir() if p.name.startswith(".")]
 
@@ -416,9 +417,9 @@ def _truncate(path: Path) -> None:
 
 
 def test_tum_import_validates_as_eval_would(seq: Sequence, tmp_path: Path, capsys) -> None:
-    """Issue 36 item 4: a missing or corrupt sequence folder, an estimate 100 s off the ground
-    truth, renders of the wrong size or truncated: each is refused with one line naming the
-    file, and no run folder is left (a retry needs no --overwrite)."""
+    """A missing or corrupt sequence folder, an estimate 100 s off the ground truth, renders
+    of the wrong size or truncated: each is refused with one line naming the file, and no
+    run folder is left (a retry needs no --overwrite)."""
     from egs_bench.baselines.import_runs import import_tum_run
     from egs_bench.cli import main
 
@@ -498,7 +499,7 @@ def test_external_import_with_a_bad_render_leaves_nothing(seq: Sequence, export:
 
 def test_monogs_keyframes_report_their_real_coverage(seq: Sequence, export: Path,
                                                      tmp_path: Path) -> None:
-    """Issue 36 item 4: MonoGS's keyframe-only trj_final.json (keyframes 0, 3, 6 of 10 frames,
+    """MonoGS's keyframe-only trj_final.json (keyframes 0, 3, 6 of 10 frames,
     the last keyframe not the last frame) covers the 10 frames MonoGS read: complete under the
     monogs protocol, which scores keyframes; under the all-frame protocol it covers its 3
     poses, not "7 of 10" (the last keyframe's index + 1)."""

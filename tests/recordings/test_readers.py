@@ -201,7 +201,7 @@ def test_truncated_bag_is_reported(tmp_path: Path) -> None:
         list(bag.event_source("/dvs/events").batches())
 
 
-# ------------------------------------------------------------------ DSEC-style HDF5 (item 4)
+# ------------------------------------------------------------------ DSEC-style HDF5
 @pytest.mark.parametrize("compression", [hdf5plugin.Blosc(cname="zstd"), hdf5plugin.Zstd()],
                          ids=["blosc", "zstd"])
 def test_dsec_events_h5_with_compression_filter(tmp_path: Path, compression) -> None:

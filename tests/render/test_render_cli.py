@@ -9,6 +9,7 @@ import torch
 from egs_bench.geometry import Intrinsics
 from egs_bench.images import read_ldr_image
 from egs_bench.render import GaussianMap
+from egs_bench.render.ply import save_ply
 from tests.helpers.cli import assert_cli_error, run_cli
 
 
@@ -20,7 +21,7 @@ def plane_ply(tmp_path):
                         intr, np.eye(4), downsample=2, point_size=1.0,
                         generator=torch.Generator().manual_seed(0))
     ply = tmp_path / "m.ply"
-    gmap.save_ply(ply)
+    save_ply(gmap, ply)
     return ply
 
 

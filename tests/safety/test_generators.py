@@ -1,5 +1,5 @@
 """Generators that stop half-way leave no hidden staging folder behind: removed on an error or a
-signal, and, after SIGKILL (no clean-up possible), by the next run (issue 12, case 8)."""
+signal, and, after SIGKILL (no clean-up possible), by the next run."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
 """Bad input gets one line naming the file or option and the right exit code, never a silently
-wrong result or an internal error (issue 12, cases 6 and 7 and the internal errors)."""
+wrong result or an internal error."""
 
 from __future__ import annotations
 
@@ -92,7 +92,7 @@ def test_sixteen_bit_render_is_refused_not_truncated(done_run, capsys):
 
 
 def test_ate_does_not_depend_on_lpips_weights(done_run, tmp_path, monkeypatch, capsys):
-    """Case 7: without LPIPS weights eval still writes ATE, PSNR and SSIM."""
+    """Without LPIPS weights eval still writes ATE, PSNR and SSIM."""
     empty = tmp_path / "no_weights"
     empty.mkdir()
     monkeypatch.setenv("EGS_BENCH_LPIPS_WEIGHTS", str(empty))
@@ -155,7 +155,7 @@ def test_exit_codes_tell_usage_data_and_internal_errors_apart(tiny_sequence, mon
 
 
 def test_eventreplica_default_resize_keeps_the_aspect_ratio(tmp_path, capsys):
-    """Case 6: a 4:3 input (7-Scenes-like) is no longer squashed to Replica's 459x260."""
+    """A 4:3 input (7-Scenes-like) is not squashed to Replica's 459x260."""
     from egs_bench.color import linear_to_srgb8
     from egs_bench.datasets.replica import export_replica_layout
     from egs_bench.datasets.sequence import Sequence

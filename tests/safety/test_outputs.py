@@ -1,6 +1,6 @@
 """Never lose a user's data: what an output path may replace, command by command.
 
-Each test is a case of issue 12 that deleted or replaced something the tool did not create.
+Each test is a way an output path could delete or replace something the tool did not create.
 """
 
 from __future__ import annotations
@@ -38,17 +38,18 @@ def _ply(tmp_path: Path) -> Path:
 
     from egs_bench.geometry import Intrinsics
     from egs_bench.render import GaussianMap
+    from egs_bench.render.ply import save_ply
 
     gmap = GaussianMap.empty()
     gmap.add_from_depth(np.full((12, 16, 3), 0.5, np.float32), np.full((12, 16), 2.0, np.float32),
                         Intrinsics(15.0, 15.0, 8, 6, 16, 12), np.eye(4), downsample=2,
                         point_size=1.0, generator=torch.Generator().manual_seed(0))
     path = tmp_path / "map.ply"
-    gmap.save_ply(path)
+    save_ply(gmap, path)
     return path
 
 
-# ---------------------------------------------------------------- case 1: a folder became a file
+# ---------------------------------------------------------------- a folder became a file
 @pytest.mark.parametrize("command", ["show", "render-map", "render-demo", "leaderboard"])
 @pytest.mark.parametrize("overwrite", [False, True])
 def test_file_outputs_never_replace_a_folder(command, overwrite, tmp_path, tiny_sequence,
@@ -104,7 +105,7 @@ def test_atomic_writes_refuse_folders_and_leave_no_temporary_files(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out.txt"]
 
 
-# ---------------------------------------------------------------- case 2: run --out <finished run>
+# ---------------------------------------------------------------- run --out <finished run>
 def test_run_into_a_finished_run_needs_overwrite_and_keeps_user_files(tmp_path, room_sequence,
                                                                       capsys):
     out = tmp_path / "run"
@@ -133,7 +134,7 @@ def test_run_out_must_be_a_run_folder(tmp_path, tiny_sequence, capsys):
     assert _snapshot(user) == before
 
 
-# ---------------------------------------------------------------- case 4: the current directory,
+# ---------------------------------------------------------------- the current directory,
 # the input, a parent of the input
 def test_make_synthetic_never_replaces_the_current_directory(tmp_path, monkeypatch, capsys):
     work = _user_folder(tmp_path / "work")

@@ -1,6 +1,6 @@
 """Run folders under concurrency and interruption: one writer at a time, stale ``running`` states
 read as ``interrupted``, SIGTERM handled like Ctrl-C, evaluation of what an interrupted run
-wrote (issue 12, cases 3 and 8)."""
+wrote."""
 
 from __future__ import annotations
 
@@ -42,14 +42,14 @@ def test_a_second_writer_is_refused_and_a_killed_run_reads_as_interrupted(
     out = tmp_path / "run"
     proc = _start_slow_run(room_sequence, out, tmp_path)
     try:
-        # case 3: a second run into the same folder while the first is running
+        # a second run into the same folder while the first is running
         code, _, err = run_cli(capsys, "run", "--method", "monogs", "--seq", room_sequence,
                                "--out", out, *QUICK_RUN, "--overwrite")
         assert_cli_error(code, err, 2, out,
                          f"is being written by another egs-bench process (pid {proc.pid} on ")
         code, _, err = run_cli(capsys, "eval", out)
         assert_cli_error(code, err, 3, out, f"run is still running (pid {proc.pid} on ")
-        # case 8: SIGKILL (no chance to clean up) leaves status.json at "running"
+        # SIGKILL (no chance to clean up) leaves status.json at "running"
         proc.send_signal(signal.SIGKILL)
         proc.wait(30)
     finally:

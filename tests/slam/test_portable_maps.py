@@ -17,7 +17,7 @@ import egs_bench.cli.render_cmds  # noqa: F401  (registers the commands)
 from egs_bench.cli.app import app
 from egs_bench.errors import ConfigError, InputError
 from egs_bench.eval.image_metrics import psnr
-from egs_bench.render.ply import SH_C0, read_ply
+from egs_bench.render.ply import SH_C0, read_ply, save_ply
 from egs_bench.runs.folder import RunFolder
 from egs_bench.slam.appearance import read_appearance
 from egs_bench.slam.crf import LeakyPiecewiseLinearCRF, crf_from_dict, crf_to_dict, make_crf
@@ -346,14 +346,14 @@ def _inria_render(path: Path, camera, pose: np.ndarray) -> np.ndarray:
 
 @pytest.mark.parametrize("kind", ["learnable", "identity"])
 def test_export_reproduces_a_straight_crf(tmp_path, kind) -> None:
-    """Issue 36 item 10: with the CRF a straight line on [0, 1] (the learnable curve's linear
+    """With the CRF a straight line on [0, 1] (the learnable curve's linear
     start, the identity), a 3DGS renderer reproduces the run's render from the export: HDR
     colours are not clamped per Gaussian, so a bright Gaussian saturates the blended pixel as
     the run's curve does. Clamping each colour to [0, 1] scored 12 dB here."""
     from egs_bench.slam.appearance import Appearance, ldr8, write_appearance
 
     gmap, camera = _hdr_scene()
-    gmap.save_ply(tmp_path / "map.ply")
+    save_ply(gmap, tmp_path / "map.ply")
     crf = make_crf(kind, 16, init="linear")
     write_appearance(tmp_path / "appearance.json", Appearance(
         crf, camera, 0.2, np.arange(1), np.zeros(1), np.zeros(1), np.zeros(1)))
@@ -402,7 +402,7 @@ def test_blend_response_continues_the_curve_linearly() -> None:
 
 
 def test_render_map_intrinsics_options(egs_run, tmp_path, capsys) -> None:
-    """Issue 36 item 10: ``render-map --pose`` takes fx, fy, cx, cy as well as a field of
+    """``render-map --pose`` takes fx, fy, cx, cy as well as a field of
     view; an image rendered with the run's own intrinsics given as numbers equals the default,
     and a shifted principal point shifts the image."""
     app_ = read_appearance(egs_run.path / "appearance.json")

@@ -31,8 +31,8 @@ def test_kernels_in_the_cache_are_not_said_to_compile_but_their_load_is_no_eta()
 
 
 def test_the_default_cache_check_reads_numba_s_cache():
+    from egs_bench.kernel_cache import uncached_kernels
     from egs_bench.slam.progress import _render_kernels_uncached
-    from egs_bench.warmup import uncached_kernels
 
     assert _render_kernels_uncached() == bool(uncached_kernels("egs_bench.render"))
 
@@ -61,7 +61,7 @@ def test_the_cpu_rasteriser_is_ready_once_it_has_rendered_and_back_propagated():
     import torch
 
     from egs_bench.render import rasterize
-    from egs_bench.render.numba_backend import kernels_ready
+    from egs_bench.render.cpu_kernels import kernels_ready
 
     means = torch.tensor([[0.0, 0.0, 2.0]], requires_grad=True)
     quats = torch.tensor([[1.0, 0.0, 0.0, 0.0]])

@@ -128,12 +128,12 @@ def test_compilation_is_not_in_the_frame_rate(tiny_room, tmp_path, monkeypatch):
     SLAM loop's time that the FPS divides by."""
     import time
 
-    from egs_bench.render import numba_backend
+    from egs_bench.render import cpu_kernels
 
     def slow_prepare() -> None:
         time.sleep(2.0)
 
-    monkeypatch.setattr(numba_backend, "prepare_kernels", slow_prepare)
+    monkeypatch.setattr(cpu_kernels, "prepare_kernels", slow_prepare)
     run, _ = _run(tiny_room, tmp_path / "cold", tracking_iters=2, init_iters=2)
     timing = json.loads((run.path / "timing.json").read_text())
     assert timing["compile_s"] >= 2.0

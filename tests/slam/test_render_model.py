@@ -1,17 +1,13 @@
-"""Lie group, exposure trajectory, CRF, losses and keyframe rules against independent references."""
+"""Blurred prediction and its loss (slam/render_model.py) against hand computation."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 import torch
-from scipy.spatial.transform import Rotation
 
-from egs_bench.color import linear_to_srgb
-from egs_bench.geometry import interpolate_pose, invert_pose
 from egs_bench.render.rasterize import rasterize
-from egs_bench.slam import crf as crf_mod
-from egs_bench.slam import exposure, keyframes, losses
+from egs_bench.slam import losses
 from egs_bench.slam.config import cpu_preset
 from egs_bench.slam.crf import make_crf
 from egs_bench.slam.frames import FrameObs
@@ -21,89 +17,6 @@ from egs_bench.slam.render_model import (
     prepare_targets,
     stack_targets,
 )
-
-
-def _random_pose(rng: np.random.Generator, rot_scale: float = 1.0) -> np.ndarray:
-    p = np.eye(4)
-    p[:3, :3] = Rotation.from_rotvec(rng.normal(size=3) * rot_scale).as_matrix()
-    p[:3, 3] = rng.normal(size=3)
-    return p
-
-
-def test_exposure_path_matches_numpy_slerp_lerp() -> None:
-    """Sub-poses equal geometry.interpolate_pose (scipy slerp + lerp of camera-to-world poses);
-    their Jacobians are tested in test_pose_algebra.py."""
-    rng = np.random.default_rng(2)
-    a_wc = _random_pose(rng)
-    b_wc = a_wc @ _random_pose(rng, 0.2)
-    fr = np.array([0.0, 0.25, 0.5, 0.9, 1.0])
-    expect_wc = interpolate_pose(a_wc, b_wc, fr)
-    got_cw, _ = exposure.exposure_path(invert_pose(a_wc), invert_pose(b_wc), fr)
-    np.testing.assert_allclose(invert_pose(got_cw), expect_wc, atol=1e-10)
-
-
-def test_subpose_fractions_equal_event_counts_and_uniform_fallback() -> None:
-    # Events dense in the first half of [0, 1000) us: boundaries must crowd there.
-    t = np.concatenate([np.linspace(0, 499, 900), np.linspace(500, 999, 100)]).astype(np.int64)
-    fr = exposure.subpose_fractions(t, 0, 1000, 4)
-    assert fr[0] == 0 and fr[-1] == 1 and np.all(np.diff(fr) > 0)
-    edges = exposure.segment_edges_us(fr, 0, 1000)
-    counts = np.histogram(t, bins=edges)[0]
-    assert counts.max() - counts.min() <= 0.05 * len(t)
-    np.testing.assert_allclose(exposure.subpose_fractions(np.array([], np.int64), 0, 1000, 4),
-                               np.linspace(0, 1, 5))
-    # One instant burst: still strictly increasing.
-    burst = exposure.subpose_fractions(np.full(100, 10, np.int64), 0, 1000, 4)
-    assert np.all(np.diff(burst) > 0) and burst[-1] == 1
-
-
-def test_crf_monotone_continuous_and_gradcheck() -> None:
-    torch.manual_seed(0)
-    crf = crf_mod.LeakyPiecewiseLinearCRF(n_nodes=8, alpha=0.01, init="srgb").double()
-    with torch.no_grad():
-        crf.gap_logits.copy_(torch.randn(7, dtype=torch.float64) * 2)
-    x = torch.linspace(-0.5, 3.0, 2001, dtype=torch.float64)
-    y = crf(x)
-    assert torch.all(torch.diff(y) >= 0)
-    assert abs(crf(torch.tensor([0.0], dtype=torch.float64)).item()) < 1e-12
-    assert abs(crf(torch.tensor([1.0], dtype=torch.float64)).item() - 1) < 1e-12
-    np.testing.assert_allclose(crf(torch.tensor([-2.0], dtype=torch.float64)).item(), -0.02)
-    np.testing.assert_allclose(crf(torch.tensor([4.0], dtype=torch.float64)).item(),
-                               1 + 0.01 - 0.01 / 2)
-    # The node interpolation passes through every node.
-    nodes = crf.nodes().detach()
-    np.testing.assert_allclose(crf(nodes).detach().numpy(), crf.levels.double().numpy(),
-                               atol=1e-12)
-    np.testing.assert_allclose(crf.inverse(crf(x)).detach().numpy(), x.numpy(), atol=1e-9)
-    # Gradients w.r.t. the input and the learnable nodes (points away from the knots).
-    inp = torch.tensor([-0.3, 0.013, 0.21, 0.47, 0.77, 0.95, 1.7], dtype=torch.float64,
-                       requires_grad=True)
-    assert torch.autograd.gradcheck(crf, (inp,))
-
-    levels = crf.levels.double()
-
-    def by_logits(logits: torch.Tensor) -> torch.Tensor:
-        nodes = crf_mod.nodes_from_logits(logits)
-        return crf_mod.leaky_piecewise_linear(inp.detach(), nodes, levels, 0.01)
-
-    logits = crf.gap_logits.detach().clone().requires_grad_(True)
-    assert torch.autograd.gradcheck(by_logits, (logits,))
-
-
-def test_crf_srgb_init_matches_srgb_curve() -> None:
-    crf = crf_mod.LeakyPiecewiseLinearCRF(n_nodes=64, init="srgb").double()
-    x = torch.linspace(0.05, 1, 50, dtype=torch.float64)
-    np.testing.assert_allclose(crf(x).detach().numpy(), linear_to_srgb(x).numpy(), atol=5e-3)
-
-
-def test_crf_default_start_is_the_identity_with_leaky_ends() -> None:
-    crf = crf_mod.make_crf("learnable", n_nodes=16, alpha=0.01).double()
-    x = torch.linspace(0.0, 1.0, 37, dtype=torch.float64)
-    np.testing.assert_allclose(crf(x).detach().numpy(), x.numpy(), atol=1e-6)
-    np.testing.assert_allclose(crf.inverse(x).numpy(), x.numpy(), atol=1e-6)
-    # outside [0, 1]: slope alpha below 0, 1 + alpha - alpha / sqrt(I) above 1
-    ends = crf(torch.tensor([-2.0, 4.0], dtype=torch.float64)).detach().numpy()
-    np.testing.assert_allclose(ends, [-0.02, 1.0 + 0.01 - 0.01 / 2.0], atol=1e-12)
 
 
 def _raster(rgb: torch.Tensor, depth: torch.Tensor, alpha: torch.Tensor | None = None):
@@ -185,9 +98,6 @@ def test_losses_against_hand_computation() -> None:
         assert t["total"].item() == pytest.approx(
             no_events.item() + t["event_he"].item() + 0.5 * t["event_ne"].item())
 
-    s = torch.tensor([[1.0, 2.0, 3.0], [2.0, 2.0, 2.0]], dtype=f64)
-    assert losses.isotropic_loss(s).item() == pytest.approx((1 + 0 + 1) / 6)
-
 
 def test_batched_loss_is_the_sum_of_per_frame_losses() -> None:
     """Mapping evaluates V frames in one call; it must equal the sum of single-frame calls."""
@@ -214,67 +124,6 @@ def test_batched_loss_is_the_sum_of_per_frame_losses() -> None:
         batched = blur_loss(_raster(*(torch.cat(x) for x in zip(*renders, strict=True))),
                             stack_targets(targets), crf, exp_ab, cfg, tracking=tracking, eps=1e-3)
         assert batched.item() == pytest.approx(single.item(), rel=1e-12)
-
-
-def test_edge_mask_marks_edges_only() -> None:
-    img = np.full((64, 64, 3), 0.5, np.float32)
-    img[:, 32:] = 0.9
-    m = losses.edge_mask(img, edge_threshold=1.1, blocks=None)
-    assert m[:, 30:34].mean() > 0.4 and m[:, :28].sum() == 0 and m[:, 36:].sum() == 0
-
-
-def _vis(idx: list[int], n: int = 10) -> np.ndarray:
-    v = np.zeros(n, bool)
-    v[idx] = True
-    return v
-
-
-def _pose_at(x: float) -> np.ndarray:
-    p = np.eye(4)
-    p[0, 3] = -x  # world-to-camera of a camera at (x, 0, 0)
-    return p
-
-
-def test_keyframe_selection_rules() -> None:
-    from egs_bench.slam.config import KeyframeConfig
-
-    r = KeyframeConfig(interval=4, overlap=0.9, min_translation=0.02, translation=0.04)
-    same = _vis(list(range(10)))
-    half = _vis(list(range(5)))
-    policy = keyframes.MonoGSKeyframes(r, window_size=3)
-
-    def wanted(frame: int, x: float, vis: np.ndarray, window_len: int) -> bool:
-        return policy.is_keyframe(keyframes.KeyframeCandidate(
-            frame, 0, _pose_at(x), _pose_at(0.0), vis, same, 1.0, window_len))
-
-    assert not wanted(3, 1.0, half, 1)  # too soon
-    # window not full: overlap decides
-    assert wanted(4, 0.0, half, 1)
-    assert not wanted(4, 1.0, same, 1)
-    # window full: large translation alone, small translation needs low overlap
-    assert wanted(4, 0.05, same, 3)
-    assert not wanted(4, 0.03, same, 3)
-    assert wanted(4, 0.03, half, 3)
-    assert not wanted(4, 0.01, half, 3)
-
-
-def test_window_removal_overlap_then_dso() -> None:
-    from egs_bench.slam.config import KeyframeConfig
-
-    r = KeyframeConfig(cutoff=0.4)
-    vis = {0: _vis([0, 1]), 1: _vis([1, 2, 3]), 2: _vis([2, 3, 4]), 3: _vis([3, 4, 5]),
-           4: _vis([3, 4, 5])}
-    poses = {k: _pose_at(float(k)) for k in range(5)}
-    # New KF 4; window [3, 2, 1, 0]; unprotected 2, 1, 0. Overlap with 4: kf2 2/3, kf1 1/3,
-    # kf0 0 -> candidates 1 and 0, the oldest (0) goes; window [4,3,2,1] still > 3 -> DSO.
-    win, removed = keyframes.update_window([3, 2, 1, 0], 4, vis, poses, r, 3)
-    assert removed[0] == 0 and len(win) == 3 and win[:2] == [4, 3]
-    # DSO among {2, 1}: score(2) = sqrt(2) * 1/1, score(1) = sqrt(3) * 1/1 -> remove 1.
-    assert removed[1] == 1 and win == [4, 3, 2]
-    # Nothing removed while the window has room and overlaps are high.
-    vis_all = {k: _vis(list(range(10))) for k in range(5)}
-    win2, removed2 = keyframes.update_window([3, 2, 1, 0], 4, vis_all, poses, r, 10)
-    assert removed2 == [] and win2 == [4, 3, 2, 1, 0]
 
 
 def test_normalised_depth_keeps_alpha_in_the_graph() -> None:
@@ -338,37 +187,71 @@ def test_fixed_response_backward_matches_finite_differences(kind: str) -> None:
     torch.testing.assert_close(respond(frozen, hdr, exp_ab), generic)
 
 
-def _pose_cw(t: tuple[float, float, float], yaw_deg: float = 0.0) -> np.ndarray:
-    pose = np.eye(4)
-    pose[:3, :3] = Rotation.from_euler("z", yaw_deg, degrees=True).as_matrix()
-    pose[:3, 3] = t
-    return pose
+def _srgb_by_hand(x: np.ndarray) -> np.ndarray:
+    """IEC 61966-2-1 encoding of linear values clipped to [0, 1] (float64)."""
+    c = np.clip(x, 0.0, 1.0)
+    return np.where(c <= 0.0031308, 12.92 * c, 1.055 * c ** (1 / 2.4) - 0.055)
 
 
-def test_last_motion_and_constant_velocity_prediction() -> None:
-    """No velocity before two end poses exist (unless frame 0's exposure trajectory is
-    non-degenerate); with two, the prediction extrapolates the last motion by the time gap."""
-    from egs_bench.slam.frames import FrameState
-    from egs_bench.slam.tracker import last_motion, predict_initial
+def _leaky_curve_by_hand(x: np.ndarray, nodes: np.ndarray, levels: np.ndarray,
+                         alpha: float) -> np.ndarray:
+    """The paper's leaky piecewise-linear CRF (float64): linear interpolation through the
+    nodes on [0, 1], slope ``alpha`` below 0, ``1 + alpha - alpha / sqrt(x)`` above 1."""
+    inside = np.interp(np.clip(x, 0.0, 1.0), nodes, levels)
+    high = 1 + alpha - alpha / np.sqrt(np.maximum(x, 1.0))
+    return np.where(x < 0, alpha * x, np.where(x > 1, high, inside))
 
-    p0 = _pose_cw((0.0, 0.0, 0.0))
-    first = [FrameState(0, p0, p0.copy())]
-    assert last_motion(first, "constant-velocity", 30_000, None, 10_000) is None
-    start = predict_initial(1, first, "constant-velocity", 40_000, 60_000, 30_000, None, 10_000)
-    np.testing.assert_allclose(start.pose1_cw, p0)
-    p1 = _pose_cw((0.02, 0.0, 0.0), 1.0)
-    two = [first[0], FrameState(1, p1, p1.copy())]
-    rel, span = last_motion(two, "constant-velocity", 60_000, 30_000, 40_000)
-    np.testing.assert_allclose(rel, p1 @ invert_pose(p0), atol=1e-12)
-    assert span == 30_000
-    assert last_motion(two, "constant-position", 60_000, 30_000, 40_000) is None
-    # Twice the gap: twice the translation and the yaw (a pure yaw with t along x composes
-    # to these within the small-motion twist approximation of predict_initial).
-    pred = predict_initial(2, two, "constant-velocity", 100_000, 120_000, 60_000, 30_000, 80_000)
-    step = pred.pose1_cw @ invert_pose(p1)
-    yaw = Rotation.from_matrix(step[:3, :3]).as_euler("zyx", degrees=True)[0]
-    assert yaw == pytest.approx(2.0, abs=1e-9)
-    assert np.linalg.norm(step[:3, 3]) == pytest.approx(0.04, rel=0.02)
-    # A non-degenerate frame-0 exposure trajectory is itself a velocity.
-    moving = [FrameState(0, p0, _pose_cw((0.01, 0.0, 0.0)))]
-    assert last_motion(moving, "constant-velocity", 30_000, None, 10_000) is not None
+
+@pytest.mark.parametrize("kind", ["learnable", "srgb"])
+@pytest.mark.parametrize("tracking", [False, True], ids=["mapping", "tracking"])
+@pytest.mark.parametrize("with_exposure", [False, True], ids=["plain", "exposure"])
+def test_blurred_prediction_is_the_response_of_the_mean_linear_render(
+        kind: str, tracking: bool, with_exposure: bool) -> None:
+    """The predicted observation of a frame is ``exp(a) CRF(mean_k hdr_k) + b``: the K+1
+    sub-pose renders are averaged in linear light and then go through the (non-affine)
+    response, never the reverse. The observation is set to that prediction, computed here in
+    float64 from the sub-renders, so the photometric loss must vanish; averaging the
+    responses of the sub-renders instead leaves a mean error far above the tolerance."""
+    f64 = torch.float64
+    views, subposes, h, w = 2, 4, 5, 6
+    rng = np.random.default_rng(3)
+    # Sub-renders spread over [0.02, 1.4]: a blurred edge mixes dark and bright instants, and
+    # values above 1 reach the curve's saturating end.
+    hdr = rng.uniform(0.02, 1.4, size=(views, subposes, h, w, 3))
+    crf = make_crf(kind, 8, 0.01, "srgb").double()
+    if kind == "learnable":
+        with torch.no_grad():  # nodes away from the sRGB start: a generic monotone curve
+            crf.gap_logits.add_(torch.from_numpy(rng.normal(scale=0.5, size=7)))
+        nodes = crf.nodes().detach().numpy()
+        levels = crf.levels.numpy()  # 8 even steps, as the curve stores them (float32-rounded)
+
+        def response(x: np.ndarray) -> np.ndarray:
+            return _leaky_curve_by_hand(x, nodes, levels, 0.01)
+    else:
+        response = _srgb_by_hand
+    exp_ab = np.array([[0.2, 0.03], [-0.1, 0.05]]) if with_exposure else np.array([[0.0, 0.0]] * 2)
+    gain, offset = np.exp(exp_ab[:, 0])[:, None, None, None], exp_ab[:, 1][:, None, None, None]
+    expected = gain * response(hdr.mean(1)) + offset  # [V, H, W, 3]
+    response_averaged = gain * response(hdr).mean(1) + offset
+    assert np.abs(response_averaged - expected).mean() > 1e-2  # the data tells the two apart
+
+    cfg = cpu_preset().replace(lambda_id=1.0, lambda_i=1.0, lambda_d=1.0,
+                               exposure_compensation=with_exposure)
+    depth = torch.ones(subposes, h, w, dtype=f64)
+    res = _raster(torch.from_numpy(hdr.reshape(views * subposes, h, w, 3)),
+                  depth.repeat(views, 1, 1))
+    fractions = list(np.linspace(0.0, 1.0, subposes))
+
+    def photometric(observed: np.ndarray) -> float:
+        frames = [_obs(torch.from_numpy(observed[v]), depth[0], fractions) for v in range(views)]
+        assert all(bool(f.rgb_mask.all()) for f in frames)  # no pixel is masked out
+        targets = stack_targets([prepare_targets(f, cfg, (0.25, 0.25), tracking=tracking,
+                                                 use_events=False) for f in frames])
+        terms = blur_loss_terms(res, targets, crf.frozen() if tracking else crf,
+                                torch.from_numpy(exp_ab) if with_exposure else None, cfg,
+                                tracking=tracking, eps=1e-3)
+        return terms["photometric"].item()
+
+    assert photometric(expected) == pytest.approx(0.0, abs=1e-12)
+    # The loss is live: an observation 0.05 brighter everywhere costs 0.05 in each frame.
+    assert photometric(expected + 0.05) == pytest.approx(views * 0.05, rel=1e-9)

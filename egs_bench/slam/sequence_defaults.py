@@ -2,9 +2,10 @@
 
 EGS-SLAM §V.B uses theta 0.25, lambda_E 0.05, lambda_ID 0.95 on synthetic data and theta 0.3,
 lambda_E 0.15, lambda_ID 0.85 on its real recordings (DEVD). A sequence imported from a real
-recording says ``source: real`` in its ``meta.yaml``; runs on it start from the real-data values
-(a method's own settings and ``--set`` still override them), and the run's ``config.yaml``
-records the values used.
+recording (:mod:`egs_bench.recordings`) says ``source: real`` in its ``meta.yaml``; runs on it
+start from the real-data values (a method's own settings and ``--set`` still override them),
+and the run's ``config.yaml`` records the values used. The SLAM configuration reads them here,
+so that it depends on the sequence's metadata only, not on the importer.
 """
 
 from __future__ import annotations
