@@ -54,6 +54,7 @@ def run_cmd(
                                             "registered under its name)."),
 ) -> None:
     """Run a SLAM method on a sequence and write its run folder."""
+    from egs_bench.cli.eval_cmds import evaluate_and_print
     from egs_bench.datasets.registry import load_sequence
     from egs_bench.errors import ConfigError
     from egs_bench.runs.registry import describe_run, get_method, supports_overwrite, with_options
@@ -72,7 +73,8 @@ def run_cmd(
         run = rerun(config, out, sequence=seq, method=method, progress=not quiet,
                     overwrite=overwrite)
         typer.echo(f"run folder: {run.path}")
-        _evaluate(run.path, run.metrics_path, evaluate, quiet)
+        if evaluate:
+            evaluate_and_print(run.path, progress=not quiet)
         return
     if method is None or seq is None:
         raise ConfigError("run needs --method and --seq (or --config RUN/config.yaml)")
@@ -87,20 +89,12 @@ def run_cmd(
     run = m.run(sequence, out_dir, preset=preset, device=device, seed=seed,
                 max_frames=max_frames, progress=not quiet, **extra)
     typer.echo(f"run folder: {run.path}")
-    _evaluate(run.path, run.metrics_path, evaluate, quiet)
+    if evaluate:
+        evaluate_and_print(run.path, progress=not quiet)
 
 
 #: what a stored configuration fixes (``run --config``); options of these names may not be given
 RERUN_FIXED = ("preset", "seed", "device", "max_frames", "options")
-
-
-def _evaluate(run_path: Path, metrics_path: Path, evaluate: bool, quiet: bool) -> None:
-    """``--eval``: score the run and print the table ``eval`` prints."""
-    if evaluate:
-        from egs_bench.cli.eval_cmds import print_metrics
-        from egs_bench.eval.evaluate import evaluate_run
-
-        print_metrics(evaluate_run(run_path, progress=not quiet), metrics_path)
 
 
 def _echo_methods() -> None:
