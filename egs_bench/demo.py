@@ -78,6 +78,7 @@ def run_demo(out: str | Path, *, sequence: str = DEMO_SEQUENCE,
     from egs_bench.eval.plots import plot_run
     from egs_bench.outputs import prepare_output
     from egs_bench.runs.folder import RunFolder
+    from egs_bench.runs.locations import run_location
     from egs_bench.runs.registry import get_method, supports_overwrite
     from egs_bench.slam.methods import ConfiguredSlamMethod
 
@@ -99,7 +100,7 @@ def run_demo(out: str | Path, *, sequence: str = DEMO_SEQUENCE,
     say(f"[2/4] running {', '.join(methods)} (preset {preset}, seed {seed}{settings})")
     for name in methods:
         method = get_method(name)
-        run_dir = out / "runs" / seq.name / method.name
+        run_dir = run_location(out, seq.name, method.name)
         finished = RunFolder.is_run_folder(run_dir) and \
             RunFolder.open(run_dir).read_status().state == "done"
         if finished:
