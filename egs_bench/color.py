@@ -18,7 +18,7 @@ imported only when a tensor is passed.
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
-from typing import TYPE_CHECKING, Any, overload
+from typing import TYPE_CHECKING, Any, Literal, overload
 
 import numpy as np
 
@@ -128,7 +128,7 @@ class LdrResponse:
         gamma: exponent for ``kind="gamma"``.
     """
 
-    kind: str = "srgb"
+    kind: Literal["srgb", "gamma"] = "srgb"
     gain: float = 1.0
     gamma: float = 2.2
 
@@ -167,7 +167,7 @@ class LdrResponse:
     @staticmethod
     def from_dict(data: dict[str, Any]) -> LdrResponse:
         return LdrResponse(
-            kind=str(data.get("kind", "srgb")),
+            kind=data.get("kind", "srgb"),  # checked by __post_init__
             gain=float(data.get("gain", 1.0)),
             gamma=float(data.get("gamma", 2.2)),
         )

@@ -1,22 +1,25 @@
 """The fixed choices of command-line options, as ``Literal`` types: typer lists them in the help
 (``<se3|sim3|none>``) and refuses anything else as a usage error naming the option.
 
-Each mirrors a constant of the library, which still checks its own arguments for Python
-callers; ``tests/cli/test_cli_options.py`` checks that the two agree.
+The evaluation protocol's choices are the library's own types (:mod:`egs_bench.eval.protocols`
+imports nothing heavy); each other one mirrors a constant of a library module that the CLI does
+not import before a command runs. The library still checks its own arguments for Python
+callers; ``tests/cli/test_cli_edges.py`` checks that the two agree.
 """
 
 from __future__ import annotations
 
 from typing import Literal
 
+from egs_bench.eval.protocols import Alignment as Alignment  # light: no numpy, no evo
+from egs_bench.eval.protocols import LpipsNet as LpipsNet
+
 Protocol = Literal["egs", "monogs"]  # eval.protocols.PROTOCOLS
 SlamPreset = Literal["auto", "paper", "cpu"]  # "auto" + slam.config.PRESETS
-Alignment = Literal["se3", "sim3", "none"]  # eval.ate.ALIGNMENTS
 PoseRelation = Literal["trans_part", "angle_deg", "angle_rad", "rot_part", "full",
                        "point_distance"]  # eval.rpe.RELATIONS
 DeltaUnit = Literal["f", "frames", "m", "meters", "d", "deg", "degrees", "r", "rad",
                     "radians"]  # eval.rpe.DELTA_UNITS
-LpipsNet = Literal["alex", "vgg"]  # eval.lpips.NETS
 BoardFormat = Literal["md", "latex", "csv", "csv-summary"]  # eval.leaderboard.FORMATS
 BoardLayout = Literal["sequence", "method"]  # eval.leaderboard.LAYOUTS
 TableWidth = Literal["auto", "natural", "column", "page"]  # eval.tables.WIDTHS

@@ -7,6 +7,7 @@ Thin wrappers: each parses its options and calls a library function in ``egs_ben
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import typer
 from rich.table import Table
@@ -28,6 +29,9 @@ from egs_bench.cli.choices import (
 )
 from egs_bench.eval.protocols import DEFAULT_PROTOCOL
 
+if TYPE_CHECKING:
+    from egs_bench.eval.metrics_file import RunMetrics
+
 
 def _fmt(value: float | None, digits: int) -> str:
     return "--" if value is None else f"{value:.{digits}f}"
@@ -41,34 +45,43 @@ def eval_cmd(
     quiet: bool = QUIET,
 ) -> None:
     """Score a run (ATE, PSNR, SSIM, LPIPS, FPS) and write RUN_DIR/metrics.json."""
+    evaluate_and_print(run_dir, protocol, progress=not quiet)
+
+
+def evaluate_and_print(run_dir: Path, protocol: str = DEFAULT_PROTOCOL, *,
+                       progress: bool) -> None:
+    """Score ``run_dir``, write its ``metrics.json`` and print it (``eval``, ``run --eval``)."""
     from egs_bench.eval.evaluate import evaluate_run
+    from egs_bench.eval.metrics_file import parse_metrics
+    from egs_bench.runs.folder import METRICS_FILE
 
-    print_metrics(evaluate_run(run_dir, protocol, write=True, progress=not quiet),
-                  Path(run_dir) / "metrics.json")
+    path = Path(run_dir) / METRICS_FILE
+    print_metrics(parse_metrics(evaluate_run(run_dir, protocol, write=True, progress=progress),
+                                path), path)
 
 
-def print_metrics(m: dict, path: Path) -> None:
-    """The table of a run's scores (``metrics.json``'s content ``m``, written to ``path``), its
-    RPE lines and notes: what ``eval`` and ``run --eval`` print."""
-    table = Table(title=f"{m['run']['method']} on {m['run']['sequence']} "
-                        f"(protocol {m['protocol']['name']})")
+def _count(value: int | None) -> str:
+    return "--" if value is None else str(value)
+
+
+def print_metrics(m: RunMetrics, path: Path) -> None:
+    """The table of a run's scores (``m``, read from ``path``), its RPE lines and notes: what
+    ``eval`` and ``run --eval`` print."""
+    table = Table(title=f"{m.method} on {m.sequence} (protocol {m.protocol})")
     # ATE and the image metrics are taken over different frames (renders every Nth frame)
     for col in ("ATE RMSE (cm)", "ATE poses", "PSNR (dB)", "SSIM", "LPIPS", "renders scored",
                 "FPS"):
         table.add_column(col, justify="right")
-    ate, rnd, spd = m["ate"], m["rendering"] or {}, m["speed"] or {}
-    table.add_row(_fmt(100 * ate["rmse_m"], 2), str(ate.get("n_matched", "--")),
-                  _fmt(rnd.get("psnr_db"), 2), _fmt(rnd.get("ssim"), 3),
-                  _fmt(rnd.get("lpips"), 3), str(rnd.get("n_frames", "--")),
-                  _fmt(spd.get("fps"), 2))
+    ate_cm = None if m.ate_rmse_m is None else 100 * m.ate_rmse_m
+    table.add_row(_fmt(ate_cm, 2), _count(m.ate_poses), _fmt(m.psnr_db, 2), _fmt(m.ssim, 3),
+                  _fmt(m.lpips, 3), _count(m.renders_scored), _fmt(m.fps, 2))
     _out.print(table)
-    for key, label in (("per_frame", "per frame"), ("per_metre", "per metre")):
-        rpe = (m.get("rpe") or {}).get(key) or {}
-        if rpe.get("translation"):
-            _out.print(f"RPE {label}: {100 * rpe['translation']['rmse']:.3f} cm, "
-                       f"{rpe['rotation']['rmse']:.3f} deg (RMSE over "
-                       f"{counted(rpe['translation']['n_pairs'], 'pair')})")
-    for note in m["notes"]:
+    for rpe, label in ((m.rpe_per_frame, "per frame"), (m.rpe_per_metre, "per metre")):
+        if rpe is not None:
+            cm = None if rpe.translation_m is None else 100 * rpe.translation_m
+            _out.print(f"RPE {label}: {_fmt(cm, 3)} cm, {_fmt(rpe.rotation_deg, 3)} deg "
+                       f"(RMSE over {counted(rpe.n_pairs, 'pair')})")
+    for note in m.notes:
         _out.print(f"note: {note}")
     _out.print(f"wrote {path}")
 

@@ -60,10 +60,9 @@ def run_cmd(
                 max_frames=max_frames, progress=not quiet, **extra)
     typer.echo(f"run folder: {run.path}")
     if evaluate:
-        from egs_bench.cli.eval_cmds import print_metrics
-        from egs_bench.eval.evaluate import evaluate_run
+        from egs_bench.cli.eval_cmds import evaluate_and_print
 
-        print_metrics(evaluate_run(run.path, progress=not quiet), run.metrics_path)
+        evaluate_and_print(run.path, progress=not quiet)
 
 
 def _echo_methods() -> None:

@@ -15,18 +15,23 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal, get_args
 
 import numpy as np
 
 from egs_bench.errors import ConfigError, InputError
+from egs_bench.eval.protocols import Alignment
 from egs_bench.geometry import Trajectory, read_tum
 
-ALIGNMENTS = ("se3", "sim3", "none")
+ALIGNMENTS: tuple[Alignment, ...] = get_args(Alignment)
 MIN_MATCHED_POSES = 3  # Umeyama needs >= 3 non-collinear points for a unique rotation
 DEFAULT_MAX_DIFF_S = 0.01  # evo's default association tolerance (TUM's scripts use 0.02 s)
-DEFAULT_RELATION = "trans_part"
-RELATIONS: dict[str, tuple[str, str]] = {
+#: Pose relations of the error (evo_ape's / evo_rpe's ``-r`` choices).
+PoseRelation = Literal["trans_part", "angle_deg", "angle_rad", "rot_part", "full",
+                       "point_distance"]
+ErrorUnit = Literal["m", "deg", "rad", "none"]
+DEFAULT_RELATION: PoseRelation = "trans_part"
+RELATIONS: dict[PoseRelation, tuple[str, ErrorUnit]] = {
     # our name (= evo_ape's / evo_rpe's -r choice): (evo PoseRelation member, unit of the error)
     "trans_part": ("translation_part", "m"),
     "angle_deg": ("rotation_angle_deg", "deg"),
@@ -66,7 +71,7 @@ class AteResult:
     min: float
     max: float
     n_matched: int
-    alignment: str
+    alignment: Alignment
     max_diff_s: float
     scale: float
     rotation: np.ndarray
@@ -75,8 +80,8 @@ class AteResult:
     errors: np.ndarray
     est_positions: np.ndarray
     gt_positions: np.ndarray
-    relation: str = DEFAULT_RELATION
-    unit: str = "m"
+    relation: PoseRelation = DEFAULT_RELATION
+    unit: ErrorUnit = "m"
     notes: tuple[str, ...] = field(default=())
 
     def summary(self) -> dict[str, Any]:
@@ -145,7 +150,7 @@ def merge_duplicate_stamps(traj: Trajectory, name: str | Path) -> tuple[Trajecto
     return Trajectory(stamps[starts].copy(), poses[starts].copy()), note
 
 
-def associate(est: Trajectory, gt: Trajectory, *, align: str = "se3",
+def associate(est: Trajectory, gt: Trajectory, *, align: Alignment = "se3",
               max_diff_s: float = DEFAULT_MAX_DIFF_S, est_name: str | Path = "estimate",
               gt_name: str | Path = "ground truth", what: str = "ATE"):
     """Validate two trajectories and associate them by nearest timestamp, as ``evo_ape`` and
@@ -198,11 +203,11 @@ def compute_ate(
     est: Trajectory,
     gt: Trajectory,
     *,
-    align: str = "se3",
+    align: Alignment = "se3",
     max_diff_s: float = DEFAULT_MAX_DIFF_S,
     est_name: str | Path = "estimate",
     gt_name: str | Path = "ground truth",
-    relation: str = DEFAULT_RELATION,
+    relation: PoseRelation = DEFAULT_RELATION,
 ) -> AteResult:
     """ATE of ``est`` against ``gt`` (evo: nearest-time association, Umeyama, APE); the
     estimate comes first here, :func:`trajectory_ate` takes evo's GT EST order.
@@ -264,9 +269,9 @@ def ate_from_files(
     est_path: str | Path,
     gt_path: str | Path,
     *,
-    align: str = "se3",
+    align: Alignment = "se3",
     max_diff_s: float = DEFAULT_MAX_DIFF_S,
-    relation: str = DEFAULT_RELATION,
+    relation: PoseRelation = DEFAULT_RELATION,
 ) -> AteResult:
     """ATE of two TUM files, estimate first (see :func:`compute_ate`; :func:`trajectory_ate`
     takes GT EST); bad files raise :class:`InputError`."""
@@ -289,8 +294,8 @@ def trajectory_ate(
     gt: Trajectory | str | Path,
     est: Trajectory | str | Path,
     *,
-    align: str = "se3",
-    relation: str = DEFAULT_RELATION,
+    align: Alignment = "se3",
+    relation: PoseRelation = DEFAULT_RELATION,
     max_diff_s: float = DEFAULT_MAX_DIFF_S,
 ) -> AteResult:
     """ATE of ``est`` against ``gt`` in evo's and the CLI's order, ground truth first:

@@ -7,11 +7,12 @@ from pathlib import Path
 from egs_bench.errors import InputError
 from egs_bench.eval.image_metrics import psnr, psnr_masked, ssim
 from egs_bench.eval.lpips import lpips_distance
+from egs_bench.eval.protocols import LpipsNet
 from egs_bench.images import read_ldr_image
 
 
 def compare_image_files(path_a: str | Path, path_b: str | Path,
-                        lpips_net: str = "alex") -> dict[str, float]:
+                        lpips_net: LpipsNet = "alex") -> dict[str, float]:
     """PSNR (full, masked to ``b > 0``), SSIM (3DGS, standard) and LPIPS of ``a`` against ``b``.
 
     Raises:

@@ -21,7 +21,7 @@ from egs_bench.errors import InputError
 from egs_bench.eval.ate import MIN_MATCHED_POSES, AteResult, compute_ate
 from egs_bench.eval.image_metrics import psnr, psnr_masked, ssim
 from egs_bench.eval.metrics_file import METRICS_SCHEMA_VERSION
-from egs_bench.eval.protocols import DEFAULT_PROTOCOL, Protocol, get_protocol
+from egs_bench.eval.protocols import DEFAULT_PROTOCOL, Alignment, Protocol, get_protocol
 from egs_bench.fileio import write_text_atomic
 from egs_bench.geometry import Trajectory, read_tum
 from egs_bench.progress import tracked
@@ -135,7 +135,7 @@ def compute_run_ate(run: RunFolder, protocol: Protocol, seq: Sequence | None = N
                        gt_name=gt_name)
 
 
-def run_alignment(run: RunFolder, protocol: Protocol) -> str:
+def run_alignment(run: RunFolder, protocol: Protocol) -> Alignment:
     """The protocol's ATE alignment, except Sim(3) instead of SE(3) for a scale-free
     (monocular) imported estimate, whose metric scale is unknown."""
     if run.estimate["scale_free"] and protocol.ate_alignment == "se3":

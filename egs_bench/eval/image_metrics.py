@@ -19,12 +19,15 @@ Variants:
 from __future__ import annotations
 
 import math
+from typing import get_args
 
 import numpy as np
 import torch
 import torch.nn.functional as F
 
-SSIM_VARIANTS = ("3dgs", "standard")
+from egs_bench.eval.protocols import SsimVariant
+
+SSIM_VARIANTS: tuple[SsimVariant, ...] = get_args(SsimVariant)
 _WINDOW = 11
 _SIGMA = 1.5
 _C1 = 0.01**2
@@ -103,7 +106,7 @@ def ssim_3dgs_map(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
 def ssim(
     pred: np.ndarray | torch.Tensor,
     ref: np.ndarray | torch.Tensor,
-    variant: str = "3dgs",
+    variant: SsimVariant = "3dgs",
 ) -> float:
     """SSIM of ``pred`` against ``ref`` (see the module docstring for the two variants).
 

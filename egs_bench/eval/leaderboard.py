@@ -23,6 +23,7 @@ import math
 from collections.abc import Sequence as Seq
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Literal, get_args
 
 import numpy as np
 import pandas as pd
@@ -46,6 +47,7 @@ from egs_bench.eval.results import (
     collect_results,
 )
 from egs_bench.eval.tables import (
+    TableWidth,
     common_n,
     dense_ranks,
     estimate_width_pt,
@@ -56,8 +58,11 @@ from egs_bench.eval.tables import (
     wrap_latex_table,
 )
 
-FORMATS = ("md", "latex", "csv", "csv-summary")
-LAYOUTS = ("sequence", "method")
+BoardFormat = Literal["md", "latex", "csv", "csv-summary"]
+#: What the rows are: one per sequence (methods as columns) or one per method.
+BoardLayout = Literal["sequence", "method"]
+FORMATS: tuple[BoardFormat, ...] = get_args(BoardFormat)
+LAYOUTS: tuple[BoardLayout, ...] = get_args(BoardLayout)
 AVERAGE = "Avg."
 
 __all__ = ["AVERAGE", "DEFAULT_METRICS", "FORMATS", "LAYOUTS", "LOST", "METRICS", "MISSING",
@@ -152,7 +157,7 @@ class TableData:
     ranked: pd.Series
 
 
-def to_frame(board: Leaderboard, by: str = "sequence") -> TableData:
+def to_frame(board: Leaderboard, by: BoardLayout = "sequence") -> TableData:
     """Lay out ``board``: ``by="sequence"`` rows are methods (labels), groups are sequences plus
     ``Avg.``; ``by="method"`` rows are sequences plus ``Avg.``, groups are methods."""
     if by not in LAYOUTS:
@@ -187,7 +192,7 @@ def to_frame(board: Leaderboard, by: str = "sequence") -> TableData:
     return TableData(mean, std, n, marker, ranked)
 
 
-def rank_cells(data: TableData, by: str) -> pd.DataFrame:
+def rank_cells(data: TableData, by: BoardLayout) -> pd.DataFrame:
     """1 best, 2 second, 0 otherwise; partial rows never compete with complete ones."""
     mean = data.mean.copy()
     ranks = pd.DataFrame(0, index=mean.index, columns=mean.columns, dtype=int)
@@ -212,7 +217,7 @@ def _competing(values: pd.Series, complete: np.ndarray) -> pd.Series:
     return full if full.notna().any() else values
 
 
-def _cells(data: TableData, by: str, style: str) -> tuple[pd.DataFrame, int]:
+def _cells(data: TableData, by: BoardLayout, style: str) -> tuple[pd.DataFrame, int]:
     ranks = rank_cells(data, by)
     usual = common_n(data.n.to_numpy().ravel())
     out = pd.DataFrame("", index=data.mean.index, columns=data.mean.columns, dtype=object)
@@ -235,7 +240,7 @@ def _legend(board: Leaderboard, usual_n: int, quote: str = "`", pm: str = "±") 
     return lines + board.notes
 
 
-def render_markdown(board: Leaderboard, by: str = "sequence") -> str:
+def render_markdown(board: Leaderboard, by: BoardLayout = "sequence") -> str:
     """GitHub Markdown table (underline as ``<u>``) followed by numbered footnotes."""
     data = to_frame(board, by)
     cells, usual = _cells(data, by, "md")
@@ -247,8 +252,8 @@ def render_markdown(board: Leaderboard, by: str = "sequence") -> str:
     return f"{table}\n\n{notes}\n"
 
 
-def render_latex(board: Leaderboard, by: str = "sequence", caption: str | None = None,
-                 label: str | None = None, width: str = "auto", notes: bool = True) -> str:
+def render_latex(board: Leaderboard, by: BoardLayout = "sequence", caption: str | None = None,
+                 label: str | None = None, width: TableWidth = "auto", notes: bool = True) -> str:
     """A booktabs table in a float (needs ``\\usepackage{booktabs,graphicx}``).
 
     Args:
@@ -285,7 +290,7 @@ def render_latex(board: Leaderboard, by: str = "sequence", caption: str | None =
                             est_width_pt=estimate_width_pt(heads + body), notes=legend)
 
 
-def render_csv(board: Leaderboard, by: str = "sequence") -> str:
+def render_csv(board: Leaderboard, by: BoardLayout = "sequence") -> str:
     """Long-format CSV: one row per run (see :func:`egs_bench.eval.grouping.results_frame`)."""
     assert board.results is not None
     df = results_frame(board.results, board.metrics)
@@ -328,15 +333,15 @@ def summary_frame(board: Leaderboard) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def render_csv_summary(board: Leaderboard, by: str = "sequence") -> str:
+def render_csv_summary(board: Leaderboard, by: BoardLayout = "sequence") -> str:
     """CSV of :func:`summary_frame`."""
     return summary_frame(board).to_csv(index=False, lineterminator="\n")
 
 
-def leaderboard(runs_root: str | Path, fmt: str = "md", by: str = "sequence",
+def leaderboard(runs_root: str | Path, fmt: BoardFormat = "md", by: BoardLayout = "sequence",
                 protocol: str = DEFAULT_PROTOCOL, metrics: Seq[str] = DEFAULT_METRICS,
                 evaluate_missing: bool = True, caption: str | None = None,
-                label: str | None = None, width: str = "auto") -> str:
+                label: str | None = None, width: TableWidth = "auto") -> str:
     """Collect the runs under ``runs_root`` and render the table in ``fmt``.
 
     Args:

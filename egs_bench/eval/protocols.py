@@ -7,9 +7,19 @@ conventions are never mixed silently.
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
-from typing import Any
+from typing import Any, Literal
 
 from egs_bench.errors import ConfigError
+
+# The choices of a protocol's fields. They live here, in a module without heavy imports, so
+# that the metric modules and the command line share them.
+AteFrames = Literal["all", "keyframes"]
+Alignment = Literal["se3", "sim3", "none"]  # Umeyama SE(3), Sim(3) (with scale), none
+RpeFrames = Literal["all"]
+ReferenceImages = Literal["sharp", "rgb"]
+PsnrVariant = Literal["masked", "full"]
+SsimVariant = Literal["3dgs", "standard"]
+LpipsNet = Literal["alex", "vgg"]
 
 
 @dataclass(frozen=True)
@@ -35,16 +45,16 @@ class Protocol:
 
     name: str
     description: str
-    ate_frames: str = "all"
-    ate_alignment: str = "se3"
+    ate_frames: AteFrames = "all"
+    ate_alignment: Alignment = "se3"
     ate_max_diff_s: float = 0.01
-    rpe_frames: str = "all"
+    rpe_frames: RpeFrames = "all"
     render_stride: int = 5
     render_skip_keyframes: bool = False
-    reference_images: str = "sharp"
-    psnr: str = "masked"
-    ssim: str = "3dgs"
-    lpips_net: str = "alex"
+    reference_images: ReferenceImages = "sharp"
+    psnr: PsnrVariant = "masked"
+    ssim: SsimVariant = "3dgs"
+    lpips_net: LpipsNet = "alex"
 
     def to_dict(self) -> dict[str, Any]:
         """Plain dict for ``metrics.json``."""

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
@@ -26,16 +26,22 @@ from egs_bench.errors import ConfigError, InputError
 from egs_bench.eval.ate import (
     DEFAULT_MAX_DIFF_S,
     RELATIONS,
+    ErrorUnit,
+    PoseRelation,
     associate,
     check_relation,
     load_trajectory,
 )
+from egs_bench.eval.protocols import Alignment
 from egs_bench.geometry import Trajectory, read_tum
 
 __all__ = ["DELTA_UNITS", "RELATIONS", "RpeResult", "compute_rpe", "rpe_from_files",
            "standard_rpe", "trajectory_rpe"]
 
-DELTA_UNITS: dict[str, str] = {
+#: evo_rpe's ``-u`` letters and their long names.
+DeltaUnit = Literal["f", "frames", "m", "meters", "d", "deg", "degrees", "r", "rad", "radians"]
+EvoUnit = Literal["frames", "meters", "degrees", "radians"]
+DELTA_UNITS: dict[DeltaUnit, EvoUnit] = {
     # evo_rpe's -u letters and their long names: evo Unit member
     "f": "frames", "frames": "frames",
     "m": "meters", "meters": "meters",
@@ -63,12 +69,12 @@ class RpeResult:
         notes: what was done to the input on the way (merged duplicate time stamps).
     """
 
-    relation: str
-    unit: str
+    relation: PoseRelation
+    unit: ErrorUnit
     delta: float
-    delta_unit: str
+    delta_unit: EvoUnit
     all_pairs: bool
-    alignment: str
+    alignment: Alignment
     scale: float
     n_matched: int
     n_pairs: int
@@ -97,11 +103,11 @@ def compute_rpe(
     est: Trajectory,
     gt: Trajectory,
     *,
-    relation: str = "trans_part",
+    relation: PoseRelation = "trans_part",
     delta: float = 1.0,
-    delta_unit: str = "f",
+    delta_unit: DeltaUnit = "f",
     all_pairs: bool = False,
-    align: str = "none",
+    align: Alignment = "none",
     max_diff_s: float = DEFAULT_MAX_DIFF_S,
     rel_delta_tol: float = DEFAULT_REL_DELTA_TOL,
     est_name: str | Path = "estimate",
@@ -183,8 +189,9 @@ def rpe_from_files(est_path: str | Path, gt_path: str | Path, **options: Any) ->
 
 
 def trajectory_rpe(gt: Trajectory | str | Path, est: Trajectory | str | Path, *,
-                   relation: str = "trans_part", delta: float = 1.0, delta_unit: str = "f",
-                   all_pairs: bool = False, align: str = "none",
+                   relation: PoseRelation = "trans_part", delta: float = 1.0,
+                   delta_unit: DeltaUnit = "f",
+                   all_pairs: bool = False, align: Alignment = "none",
                    max_diff_s: float = DEFAULT_MAX_DIFF_S,
                    rel_delta_tol: float = DEFAULT_REL_DELTA_TOL) -> RpeResult:
     """RPE of ``est`` against ``gt`` in evo's and the CLI's order, ground truth first:
@@ -216,10 +223,13 @@ def standard_rpe(est: Trajectory, gt: Trajectory, *, max_diff_s: float = DEFAULT
     the reason in ``"note"``. Errors other than that one propagate.
     """
     out: dict[str, Any] = {}
-    for key, delta_unit in (("per_frame", "f"), ("per_metre", "m")):
+    spacings: tuple[tuple[str, DeltaUnit], ...] = (("per_frame", "f"), ("per_metre", "m"))
+    parts: tuple[tuple[str, PoseRelation], ...] = (("translation", "trans_part"),
+                                                  ("rotation", "angle_deg"))
+    for key, delta_unit in spacings:
         entry: dict[str, Any] = {}
         try:
-            for name, relation in (("translation", "trans_part"), ("rotation", "angle_deg")):
+            for name, relation in parts:
                 res = compute_rpe(est, gt, relation=relation, delta=1, delta_unit=delta_unit,
                                   max_diff_s=max_diff_s, est_name=est_name, gt_name=gt_name)
                 entry[name] = res.summary()

@@ -15,6 +15,7 @@ import math
 import re
 from collections import Counter
 from collections.abc import Iterable, Sequence
+from typing import Literal, get_args
 
 import pandas as pd
 
@@ -22,7 +23,10 @@ from egs_bench.errors import ConfigError
 from egs_bench.eval.grouping import Stat
 from egs_bench.eval.results import METRICS
 
-WIDTHS = ("auto", "natural", "column", "page")
+#: How wide a LaTeX table is set: by its estimated width, as wide as its content, one column or
+#: the page.
+TableWidth = Literal["auto", "natural", "column", "page"]
+WIDTHS: tuple[TableWidth, ...] = get_args(TableWidth)
 #: Estimated natural width above which ``auto`` makes a page-wide ``table*`` (a two-column
 #: paper's column is about 240 pt wide).
 COLUMN_WIDTH_PT = 240.0
@@ -97,7 +101,7 @@ def estimate_width_pt(cells: Sequence[Sequence[str]]) -> float:
 
 
 def wrap_latex_table(tabular: Sequence[str], *, caption: str | None, label: str | None,
-                     width: str = "auto", est_width_pt: float = 0.0,
+                     width: TableWidth = "auto", est_width_pt: float = 0.0,
                      notes: Sequence[str] = ()) -> str:
     """Put ``tabular`` lines into a float.
 

@@ -36,6 +36,7 @@ from egs_bench.eval.leaderboard import Leaderboard, build
 from egs_bench.eval.protocols import DEFAULT_PROTOCOL
 from egs_bench.eval.results import collect_results
 from egs_bench.eval.tables import (
+    TableWidth,
     common_n,
     dense_ranks,
     estimate_width_pt,
@@ -177,7 +178,7 @@ def _latex_stub(text: str) -> str:
         "↑", r"$\uparrow$").replace("↓", r"$\downarrow$")
 
 
-def render_latex(table: PaperTable, label: str | None = None, width: str = "auto") -> str:
+def render_latex(table: PaperTable, label: str | None = None, width: TableWidth = "auto") -> str:
     """A booktabs table in a float (``\\usepackage{booktabs,graphicx,amssymb}``); footnotes go
     into LaTeX comments so the table stays paper-ready."""
     ranks = table.ranks()
@@ -452,7 +453,7 @@ def build_tables(sweep_dir: str | Path, protocol: str = DEFAULT_PROTOCOL,
 
 
 def write_tables(tables: dict[str, PaperTable], out_dir: str | Path, *, label_prefix: str = "tab:",
-                 width: str = "auto", overwrite: bool = False) -> list[Path]:
+                 width: TableWidth = "auto", overwrite: bool = False) -> list[Path]:
     """Write ``<name>.tex`` and ``<name>.md`` per table and ``tables.tex`` (a minimal document
     that inputs them all, for checking with pdflatex); returns the written paths.
 

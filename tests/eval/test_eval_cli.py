@@ -22,6 +22,11 @@ def test_cli_eval_leaderboard_plot_import(tmp_path, eval_sequence, capsys) -> No
     assert code == 0 and "ATE RMSE (cm)" in out and "metrics.json" in out
     metrics = json.loads(run.metrics_path.read_text())
     assert f"{100 * metrics['ate']['rmse_m']:.2f}" in out
+    per_frame = metrics["rpe"]["per_frame"]
+    assert (f"RPE per frame: {100 * per_frame['translation']['rmse']:.3f} cm, "
+            f"{per_frame['rotation']['rmse']:.3f} deg (RMSE over "
+            f"{per_frame['translation']['n_pairs']} pairs)") in out
+    assert "RPE per metre" not in out  # the test path is shorter than 1 m
 
     code, out, _ = run_cli(capsys, "import-run", str(run.trajectory_path),
                            "-o", str(tmp_path / "runs" / "tiny" / "ext"), "--method", "ext",

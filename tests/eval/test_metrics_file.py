@@ -49,6 +49,17 @@ def test_a_file_written_by_evaluation_reads_back_whole(evaluated) -> None:
     assert m.render_fps == 250.0 and m.fps == written["speed"]["fps"] and m.fps > 0
     assert (m.frames_processed, m.frames_in_sequence) == (12, 12)  # the whole sequence
     assert m.notes == tuple(written["notes"]) and m.tools == written["tools"]
+    assert m.ate_poses == written["ate"]["n_matched"] == 12 and m.renders_scored == 3
+    for rpe, spacing in ((m.rpe_per_frame, "per_frame"), (m.rpe_per_metre, "per_metre")):
+        entry = written["rpe"][spacing]
+        if entry["translation"] is None:  # a path shorter than 1 m has no per-metre pair
+            assert rpe is None
+            continue
+        assert rpe is not None
+        assert (rpe.translation_m, rpe.rotation_deg, rpe.n_pairs) == (
+            entry["translation"]["rmse"], entry["rotation"]["rmse"],
+            entry["translation"]["n_pairs"])
+    assert m.rpe_per_frame is not None and m.rpe_per_frame.n_pairs == 11
     assert parse_metrics(written, run_dir / "metrics.json") == m  # JSON changes nothing
 
 
@@ -63,6 +74,7 @@ def test_a_file_without_the_sections_added_later_still_reads(evaluated, tmp_path
 
     m = read_metrics(_rewrite(run_dir, tmp_path / "old", older))
     assert m.rpe is None and (m.frames_processed, m.frames_in_sequence) == (None, None)
+    assert m.rpe_per_frame is None and m.rpe_per_metre is None
     assert m.speed is None and m.fps is None and m.render_fps is None
     assert m.ate_rmse_m == written["ate"]["rmse_m"]
     assert m.psnr_db == written["rendering"]["psnr_db"]
@@ -74,6 +86,7 @@ def test_a_file_without_the_sections_added_later_still_reads(evaluated, tmp_path
     minimal = read_metrics(_rewrite(run_dir, tmp_path / "minimal", required_only))
     assert minimal.protocol == "egs" and minimal.ate_rmse_m == written["ate"]["rmse_m"]
     assert minimal.notes == () and minimal.method is None and minimal.rendering is None
+    assert minimal.renders_scored is None and minimal.ate_poses == written["ate"]["n_matched"]
 
 
 def test_a_file_of_the_first_layout_reads(tmp_path) -> None:
@@ -115,6 +128,10 @@ def _set(path: tuple[str, ...], value: Any):
     (_set(("run",), "egs"), "'run' must be a mapping"),
     (_set(("run", "method"), 3), "'method' must be a string, found 3"),
     (_set(("rpe",), []), "'rpe' must be a mapping"),
+    (_set(("rpe", "per_frame"), 0.1), "'rpe.per_frame' must be a mapping"),
+    (_set(("rpe", "per_frame", "translation", "n_pairs"), 2.5),
+     "'n_pairs' must be a non-negative integer, found 2.5"),
+    (_set(("ate", "n_matched"), -1), "'n_matched' must be a non-negative integer, found -1"),
     (_set(("tools", "torch"), 2.13), "'tools' must map tool names to version strings"),
     (_set(("notes",), "one note"), "'notes' must be a list of strings"),
     (_set(("schema_version",), "1"), "'schema_version' must be an integer, found '1'"),
