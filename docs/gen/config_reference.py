@@ -2,8 +2,9 @@
 
 One table per group of :data:`~egs_bench.slam.config.GROUPS`: each field's type, default, its
 value in every preset of :data:`~egs_bench.slam.config.PRESETS`, its range
-(:data:`~egs_bench.slam.config.RANGES`) or choices, and the comment written beside it in the
-source (the field's documentation).
+(:func:`~egs_bench.slam.config.ranges`) or choices, and the comment written beside it in the
+source (the field's documentation). :func:`render` takes a method's group classes too, so a
+component's own config (``SlamComponents.config_classes``) is listed the same way.
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ import io
 import textwrap
 import tokenize
 import typing
+from collections.abc import Mapping
 from typing import Any, Literal
 
 from tabulate import tabulate
@@ -24,8 +26,22 @@ from egs_bench.slam import config
 
 def field_docs(cls: type) -> dict[str, str]:
     """Each field of a config dataclass -> its comment: the comment lines right above the
-    field and the comment at the end of its line, joined (``""`` when it has none)."""
-    source = textwrap.dedent(inspect.getsource(cls))
+    field and the comment at the end of its line, joined (``""`` when it has none). Fields
+    inherited from a base dataclass keep the base's comment; a class whose source cannot be
+    read (defined interactively) documents none of its own."""
+    docs: dict[str, str] = {}
+    for klass in reversed(cls.__mro__):
+        if dataclasses.is_dataclass(klass):
+            docs.update(_own_field_docs(klass))
+    return {f.name: docs.get(f.name, "") for f in dataclasses.fields(cls)}
+
+
+def _own_field_docs(cls: type) -> dict[str, str]:
+    """:func:`field_docs` of the fields written in ``cls``'s own body."""
+    try:
+        source = textwrap.dedent(inspect.getsource(cls))
+    except (OSError, TypeError):
+        return {}
     comments: dict[int, str] = {}
     code_lines: set[int] = set()
     for tok in tokenize.generate_tokens(io.StringIO(source).readline):
@@ -61,7 +77,8 @@ def type_name(kind: Any) -> str:
     return "None" if kind is type(None) else kind.__name__
 
 
-def allowed_values(key: str, kind: Any) -> str:
+def allowed_values(key: str, kind: Any,
+                   ranges: Mapping[str, config.Bounds] = config.RANGES) -> str:
     """The range of a number field, the choices of a ``Literal``, or ``""``."""
     choices = [arg for arg in typing.get_args(kind) if arg is not type(None)]
     literal = next((c for c in choices if typing.get_origin(c) is Literal), None)
@@ -69,7 +86,7 @@ def allowed_values(key: str, kind: Any) -> str:
         literal = kind
     if literal is not None:
         return ", ".join(f"`{choice}`" for choice in typing.get_args(literal))
-    bounds = config.RANGES.get(key)
+    bounds = ranges.get(key)
     if bounds is None:
         return ""
     text = bounds.describe()
@@ -89,9 +106,12 @@ def value_text(value: Any) -> str:
     return f"`{value}`"
 
 
-def group_table(group: str, presets: dict[str, config.SlamConfig]) -> str:
-    """The Markdown table of one group."""
-    cls = config.GROUPS[group]
+def group_table(group: str, presets: dict[str, config.SlamConfig],
+                cls: type | None = None) -> str:
+    """The Markdown table of one group (``cls``: its config class, default the built-in one;
+    ``presets`` hold that class in the group)."""
+    cls = cls or config.GROUPS[group]
+    ranges = config.ranges({**config.GROUPS, group: cls})
     hints = typing.get_type_hints(cls)
     docs = field_docs(cls)
     rows = []
@@ -103,14 +123,16 @@ def group_table(group: str, presets: dict[str, config.SlamConfig]) -> str:
         # a preset's value that differs from the field's default is the point of the preset
         values = [v if v == default_text else f"**{v}**" for v in values]
         rows.append([f"`{f.name}`", type_name(hints[f.name]), default_text, *values,
-                     allowed_values(key, hints[f.name]), docs[f.name].replace("|", "\\|")])
+                     allowed_values(key, hints[f.name], ranges), docs[f.name].replace("|", "\\|")])
     headers = ["field", "type", "default", *presets, "range / choices", "doc"]
     return tabulate(rows, headers=headers, tablefmt="github", disable_numparse=True)
 
 
-def render() -> str:
-    """The whole page (Markdown)."""
-    presets = {name: make() for name, make in config.PRESETS.items()}
+def render(classes: Mapping[str, type] | None = None) -> str:
+    """The whole page (Markdown); ``classes``: the group classes of a method whose components
+    declare their own config (None: the built-in groups)."""
+    groups = {**config.GROUPS, **(classes or {})}
+    presets = {name: make().with_groups(groups) for name, make in config.PRESETS.items()}
     parts = [
         "# Configuration reference",
         "",
@@ -123,7 +145,7 @@ def render() -> str:
         "from the field's default.",
         "",
     ]
-    for group, cls in config.GROUPS.items():
+    for group, cls in groups.items():
         parts += [f"## `{group}`", "", " ".join((cls.__doc__ or "").split()), "",
-                  group_table(group, presets), ""]
+                  group_table(group, presets, cls), ""]
     return "\n".join(parts)

@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import typer
+from typer._click.core import ParameterSource
 
 from egs_bench.cli.app import QUIET, SEED_MAX, app
 from egs_bench.cli.choices import ListWhat, SlamPreset
@@ -12,12 +13,15 @@ from egs_bench.cli.choices import ListWhat, SlamPreset
 
 @app.command("run")
 def run_cmd(
-    method: str = typer.Option(..., "--method", "-m",
-                               help="Method name (see `egs-bench list methods`) or an import "
-                                    "path module:attribute."),
-    seq: str = typer.Option(..., "--seq", "-s",
-                            help="Sequence folder, or a name under $EGS_BENCH_DATA "
-                                 "(default ./data)."),
+    ctx: typer.Context,
+    method: str | None = typer.Option(None, "--method", "-m",
+                                      help="Method name (see `egs-bench list methods`) or an "
+                                           "import path module:attribute (required unless "
+                                           "--config)."),
+    seq: str | None = typer.Option(None, "--seq", "-s",
+                                   help="Sequence folder, or a name under $EGS_BENCH_DATA "
+                                        "(default ./data); required unless --config, whose "
+                                        "run's sequence it replaces."),
     preset: SlamPreset = typer.Option("auto", "--preset",
                                help="Compute budget: auto (paper on CUDA, cpu on a CPU), "
                                     "paper (the paper's iterations and resolution, GPU-sized) "
@@ -41,15 +45,42 @@ def run_cmd(
                                       help="Override one configuration field, KEY=VALUE "
                                            "(repeatable; built-in methods only), e.g. "
                                            "--set lambda_d=0.05."),
+    config: Path | None = typer.Option(None, "--config",
+                                       help="Re-run a stored configuration, RUN/config.yaml: "
+                                            "its method, preset, seed, device, frame count "
+                                            "and settings (then --preset, --seed, --device, "
+                                            "--max-frames and --set may not be given; "
+                                            "--method says where to find a method that is not "
+                                            "registered under its name)."),
 ) -> None:
     """Run a SLAM method on a sequence and write its run folder."""
+    from egs_bench.cli.eval_cmds import evaluate_and_print
     from egs_bench.datasets.registry import load_sequence
     from egs_bench.errors import ConfigError
     from egs_bench.runs.locations import run_location
     from egs_bench.runs.registry import describe_run, get_method, supports_overwrite, with_options
-    from egs_bench.slam.config import parse_overrides
+    from egs_bench.slam.methods import parse_method_options
 
-    m = with_options(get_method(method), parse_overrides(options))
+    if config is not None:
+        from egs_bench.slam.methods import rerun
+
+        given = [f"--{name.replace('_', '-')}" for name in RERUN_FIXED
+                 if ctx.get_parameter_source(name) is ParameterSource.COMMANDLINE]
+        if given:
+            raise ConfigError(f"--config re-runs the stored {', '.join(given)}; leave "
+                              f"{'it' if len(given) == 1 else 'them'} out")
+        if out is None:
+            raise ConfigError("--config needs --out: the folder of the new run")
+        run = rerun(config, out, sequence=seq, method=method, progress=not quiet,
+                    overwrite=overwrite)
+        typer.echo(f"run folder: {run.path}")
+        if evaluate:
+            evaluate_and_print(run.path, progress=not quiet)
+        return
+    if method is None or seq is None:
+        raise ConfigError("run needs --method and --seq (or --config RUN/config.yaml)")
+    chosen = get_method(method)
+    m = with_options(chosen, parse_method_options(chosen, options))
     if overwrite and not supports_overwrite(m):
         raise ConfigError(f"method {m.name!r} does not support --overwrite; choose a new --out")
     sequence = load_sequence(seq, progress=not quiet)
@@ -60,9 +91,11 @@ def run_cmd(
                 max_frames=max_frames, progress=not quiet, **extra)
     typer.echo(f"run folder: {run.path}")
     if evaluate:
-        from egs_bench.cli.eval_cmds import evaluate_and_print
-
         evaluate_and_print(run.path, progress=not quiet)
+
+
+#: what a stored configuration fixes (``run --config``); options of these names may not be given
+RERUN_FIXED = ("preset", "seed", "device", "max_frames", "options")
 
 
 def _echo_methods() -> None:

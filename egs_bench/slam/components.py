@@ -19,12 +19,13 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Protocol, runtime_checkable
+from typing import Any, ClassVar, Protocol, runtime_checkable
 
 import numpy as np
 
 from egs_bench.errors import ConfigError
 from egs_bench.render import GaussianMap
+from egs_bench.slam.config import GROUPS, KeyframeConfig
 from egs_bench.slam.context import SlamContext
 from egs_bench.slam.crf import CameraResponse
 from egs_bench.slam.frames import FrameObs, FrameState
@@ -107,9 +108,28 @@ MapperFactory = Callable[[SlamContext, GaussianMap, CameraResponse, np.random.Ge
 KeyframePolicyFactory = Callable[[SlamContext], KeyframePolicy]
 
 
-def monogs_keyframes(ctx: SlamContext) -> KeyframePolicy:
-    """The default keyframe policy: MonoGS's rules with the configured window size."""
-    return MonoGSKeyframes(ctx.cfg.keyframes, ctx.cfg.budget.window_size)
+class MonoGSKeyframePolicy(MonoGSKeyframes):
+    """The default keyframe policy: MonoGS's rules (``keyframes``) with the configured window
+    size (``budget.window_size``)."""
+
+    Config: ClassVar[type] = KeyframeConfig
+
+    def __init__(self, ctx: SlamContext) -> None:
+        super().__init__(ctx.cfg.keyframes, ctx.cfg.budget.window_size)
+
+
+#: which configuration group each replaceable part reads (its ``Config`` extends the group's
+#: built-in class)
+ROLE_GROUPS = {"tracker": "tracking", "mapper": "mapping", "keyframes": "keyframes"}
+
+
+def import_path(obj: object) -> str:
+    """``module:qualified.name`` of a class or function (as :func:`~egs_bench.runs.registry`
+    resolves ``--method module:attribute``); a part defined inside a function has
+    ``<locals>`` in its name and cannot be imported back."""
+    module = getattr(obj, "__module__", None) or type(obj).__module__
+    name = getattr(obj, "__qualname__", None) or type(obj).__qualname__
+    return f"{module}:{name}"
 
 
 @dataclass(frozen=True)
@@ -127,5 +147,29 @@ class SlamComponents:
 
     tracker: TrackerFactory = GradientTracker
     mapper: MapperFactory = Mapper
-    keyframes: KeyframePolicyFactory = monogs_keyframes
+    keyframes: KeyframePolicyFactory = MonoGSKeyframePolicy
     loss_terms: tuple[LossTerm, ...] = LOSS_TERMS
+
+    def config_classes(self) -> dict[str, type]:
+        """By configuration group, the config class the part in it reads: a factory's
+        ``Config`` class attribute (a frozen dataclass extending the group's built-in class,
+        whose own fields ``--set GROUP.FIELD`` reaches), else the built-in class; the groups
+        no part reads (``method``, ``budget``, ...) are the built-in ones."""
+        out: dict[str, type] = dict(GROUPS)
+        for role, group in ROLE_GROUPS.items():
+            declared = getattr(getattr(self, role), "Config", None)
+            out[group] = declared if declared is not None else GROUPS[group]
+        return out
+
+    def record(self) -> dict[str, Any]:
+        """What the run folder's ``config.yaml`` records of the parts: each factory's import
+        path and the group (and config class) it reads, and each loss term's name and the
+        import path of its value function."""
+        classes = self.config_classes()
+        out: dict[str, Any] = {
+            role: {"target": import_path(getattr(self, role)), "config": group,
+                   "config_class": import_path(classes[group])}
+            for role, group in ROLE_GROUPS.items()}
+        out["loss_terms"] = [{"name": term.name, "value": import_path(term.value)}
+                             for term in self.loss_terms]
+        return out

@@ -20,6 +20,7 @@ import dataclasses
 import math
 import re
 import typing
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
@@ -240,6 +241,34 @@ class SlamConfig:
     # that a researcher adds (docs/guide/extending.md).
     extra: dict[str, Any] = field(default_factory=dict)
 
+    # ------------------------------------------------------------------ groups
+    def groups(self) -> dict[str, type]:
+        """Each group's config class: the built-in one (:data:`GROUPS`) or a component's
+        subclass of it, which adds that component's fields (:meth:`with_groups`)."""
+        return {group: type(getattr(self, group)) for group in GROUPS}
+
+    def with_groups(self, classes: Mapping[str, type]) -> SlamConfig:
+        """A copy whose groups ``classes`` names are of those classes (a component's config,
+        a subclass of the group's built-in class), keeping every value the two share and
+        taking the new fields' defaults.
+
+        Raises:
+            TypeError: a class that does not extend its group's built-in class (the other
+                parts read the built-in fields of every group).
+        """
+        new: dict[str, Any] = {}
+        for group, cls in classes.items():
+            if not (isinstance(cls, type) and issubclass(cls, GROUPS[group])
+                    and dataclasses.is_dataclass(cls)):
+                raise TypeError(f"the config of group {group!r} must be a dataclass extending "
+                                f"{GROUPS[group].__name__}, got {cls!r}")
+            old = getattr(self, group)
+            if type(old) is not cls:
+                kept = {f.name: getattr(old, f.name) for f in dataclasses.fields(cls)
+                        if f.init and hasattr(old, f.name)}
+                new[group] = cls(**kept)
+        return dataclasses.replace(self, **new)
+
     # ------------------------------------------------------------------ derived values
     @property
     def n_segments(self) -> int:
@@ -256,11 +285,12 @@ class SlamConfig:
         """
         by_group: dict[str, dict[str, Any]] = {}
         extra = dict(self.extra)
+        groups = self.groups()
         for key, value in changes.items():
             if key.startswith(EXTRA_PREFIX):
                 extra[_extra_name(key)] = value
                 continue
-            group, name = resolve_key(key)
+            group, name = resolve_key(key, groups)
             by_group.setdefault(group, {})[name] = value
         new: dict[str, Any] = {g: dataclasses.replace(getattr(self, g), **v)
                                for g, v in by_group.items()}
@@ -268,7 +298,7 @@ class SlamConfig:
 
     def get(self, key: str) -> Any:
         """The value of ``group.field`` or a short name."""
-        group, name = resolve_key(key)
+        group, name = resolve_key(key, self.groups())
         return getattr(getattr(self, group), name)
 
     def to_dict(self) -> dict[str, Any]:
@@ -276,21 +306,37 @@ class SlamConfig:
         return dataclasses.asdict(self)
 
     @classmethod
-    def from_dict(cls, data: dict[str, Any]) -> SlamConfig:
-        """Inverse of :meth:`to_dict` (unknown keys raise :class:`ConfigError`)."""
-        groups = {}
+    def from_dict(cls, data: dict[str, Any], classes: Mapping[str, type] | None = None
+                  ) -> SlamConfig:
+        """Inverse of :meth:`to_dict`, with the groups of ``classes`` (components' configs,
+        see :meth:`with_groups`; None: the built-in :data:`GROUPS`).
+
+        Also reads the flat layout of earlier versions: a key that is not a group is an
+        option name (:data:`ALIASES`), applied over the built-in defaults.
+
+        Raises:
+            ConfigError: an unknown group or option.
+        """
+        kinds = {**GROUPS, **(classes or {})}
+        groups: dict[str, Any] = {}
+        flat: dict[str, Any] = {}
         for group, values in data.items():
             if group == "extra":
                 continue
-            if group not in GROUPS or not isinstance(values, dict):
-                raise ConfigError(f"unknown SLAM configuration group {group!r}")
-            known = {f.name for f in dataclasses.fields(GROUPS[group])}
+            if group not in kinds:
+                flat[group] = values
+                continue
+            if not isinstance(values, dict):
+                raise ConfigError(f"SLAM configuration group {group!r} is not a mapping")
+            known = {f.name for f in dataclasses.fields(kinds[group])}
             unknown = set(values) - known
             if unknown:
                 raise ConfigError(f"unknown SLAM option(s) in {group}: "
                                   f"{', '.join(sorted(unknown))}")
-            groups[group] = GROUPS[group](**values)
-        return cls(**groups, extra=dict(data.get("extra") or {}))
+            groups[group] = kinds[group](**values)
+        missing = {g: k() for g, k in kinds.items() if g not in groups and k is not GROUPS[g]}
+        config = cls(**groups, **missing, extra=dict(data.get("extra") or {}))
+        return config.replace(**flat)
 
     # ------------------------------------------------------------------ checking
     def validate(self) -> SlamConfig:
@@ -299,16 +345,17 @@ class SlamConfig:
         Raises:
             ConfigError: naming the option (``group.field``) and what is wrong.
         """
-        for group, cls in GROUPS.items():
+        groups = self.groups()
+        for group, cls in groups.items():
             hints = typing.get_type_hints(cls)
             for f in dataclasses.fields(cls):
                 _check_type(f"{group}.{f.name}", hints[f.name],
                             getattr(getattr(self, group), f.name))
-        for key, bounds in RANGES.items():
+        for key, bounds in ranges(groups).items():
             value = self.get(key)
             if value is not None:
                 _require(bounds.contains(value), key, f"must be {bounds.describe()}"
-                         + _null_note(key, bounds))
+                         + _null_note(key, bounds, groups))
         m, k, b = self.method, self.keyframes, self.budget
         _require(b.window_size > k.protected, "budget.window_size",
                  "must exceed keyframes.protected")
@@ -420,10 +467,23 @@ RANGES: dict[str, Bounds] = {
 }
 
 
-def _null_note(key: str, bounds: Bounds) -> str:
+def ranges(groups: Mapping[str, type] = GROUPS) -> dict[str, Bounds]:
+    """The range of every number field of ``groups`` by ``group.field``: :data:`RANGES`, and
+    for a component's config class (a subclass of a built-in group) the ranges of its own
+    fields, declared as its class attribute ``RANGES: ClassVar[dict[str, Bounds]]`` by field
+    name."""
+    out = dict(RANGES)
+    for group, cls in groups.items():
+        if cls is not GROUPS[group]:
+            out.update({f"{group}.{name}": bounds
+                        for name, bounds in getattr(cls, "RANGES", {}).items()})
+    return out
+
+
+def _null_note(key: str, bounds: Bounds, groups: Mapping[str, type] = GROUPS) -> str:
     """`` (or null: meaning)`` for a field that may be None, else ``""``."""
     group, name = key.split(".")
-    if type(None) not in typing.get_args(typing.get_type_hints(GROUPS[group])[name]):
+    if type(None) not in typing.get_args(typing.get_type_hints(groups[group])[name]):
         return ""
     return f" (or null: {bounds.null})" if bounds.null else " (or null)"
 
@@ -481,16 +541,17 @@ def _extra_name(key: str) -> str:
     return name
 
 
-def resolve_key(key: str) -> tuple[str, str]:
-    """``"loss.lambda_d"`` or ``"lambda_d"`` -> ``("loss", "lambda_d")``.
+def resolve_key(key: str, groups: Mapping[str, type] = GROUPS) -> tuple[str, str]:
+    """``"loss.lambda_d"`` or ``"lambda_d"`` -> ``("loss", "lambda_d")``; ``groups``: the
+    config class of each group (a component's own fields are reached as ``group.field``).
 
     Raises:
         ConfigError: unknown group or field.
     """
     path = ALIASES.get(key, key)
     group, sep, name = path.partition(".")
-    if not sep or group not in GROUPS or name not in {
-            f.name for f in dataclasses.fields(GROUPS[group])}:
+    if not sep or group not in groups or name not in {
+            f.name for f in dataclasses.fields(groups[group])}:
         raise ConfigError(f"unknown SLAM option {key!r} (options are group.field, e.g. "
                           f"loss.lambda_d, or a field name: {', '.join(sorted(ALIASES))})")
     return group, name
@@ -605,13 +666,15 @@ def _as_float(value: Any) -> Any:
     return value
 
 
-def parse_overrides(items: list[str]) -> dict[str, Any]:
+def parse_overrides(items: list[str], groups: Mapping[str, type] = GROUPS) -> dict[str, Any]:
     """``["lambda_d=0.05", "method.crf=srgb", "theta=null"]`` -> ``{"loss.lambda_d": 0.05,
     "method.crf": "srgb", "method.theta": None}`` (keys as ``group.field`` paths).
 
     Values are read as YAML scalars (numbers, true/false, null, strings) and checked against
     the field's type; a number field also takes a decimal string such as ``"1e-3"`` (which
     YAML 1.1 reads as a string), so ``--set`` and a sweep file's ``set:`` accept it.
+    ``groups``: the config class of each group, for a method whose components add fields
+    (:meth:`SlamConfig.groups`).
 
     Raises:
         ConfigError: an item without ``=``, an unknown key, or a value of the wrong type.
@@ -636,8 +699,8 @@ def parse_overrides(items: list[str]) -> dict[str, Any]:
                 raise ConfigError(f"{key} must be a finite number, got {raw!r}")
             out[f"{EXTRA_PREFIX}{name}"] = value
             continue
-        group, name = resolve_key(key)
-        kind = typing.get_type_hints(GROUPS[group])[name]
+        group, name = resolve_key(key, groups)
+        kind = typing.get_type_hints(groups[group])[name]
         if kind is float or float in typing.get_args(kind):
             value = _as_float(value)
         _check_type(f"{group}.{name}", kind, value)

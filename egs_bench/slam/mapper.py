@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 import torch
@@ -19,6 +20,7 @@ import torch
 from egs_bench.geometry.lie import se3_exp, twist_gradient
 from egs_bench.interrupts import raise_if_interrupted
 from egs_bench.render import GaussianMap
+from egs_bench.slam.config import MappingConfig
 from egs_bench.slam.context import SlamContext
 from egs_bench.slam.crf import CameraResponse
 from egs_bench.slam.exposure import exposure_path
@@ -54,6 +56,8 @@ class Mapper:
     for every mapping round (insertion and pruning replace the tensors), and there is no
     clone/split densification; insertion is denser instead.
     """
+
+    Config: ClassVar[type] = MappingConfig
 
     def __init__(self, ctx: SlamContext, gmap: GaussianMap, crf: CameraResponse,
                  rng: np.random.Generator) -> None:

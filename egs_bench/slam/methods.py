@@ -45,8 +45,16 @@ class ConfiguredSlamMethod:
         from egs_bench.slam.config import preset as make_preset
         from egs_bench.slam.sequence_defaults import sequence_slam_defaults
 
-        base = make_preset(preset).replace(**sequence_slam_defaults(meta or {}))
+        base = make_preset(preset).with_groups(self.config_classes())
+        base = base.replace(**sequence_slam_defaults(meta or {}))
         return base.replace(**self.overrides).validate().replace(**self.options).validate()
+
+    def config_classes(self) -> dict[str, type]:
+        """By configuration group, the config class of the part that reads it (a component's
+        own config adds fields to its group; :meth:`SlamComponents.config_classes`)."""
+        from egs_bench.slam.components import SlamComponents
+
+        return (self.components or SlamComponents()).config_classes()
 
     def with_options(self, options: dict[str, Any]) -> Self:
         """This method with single configuration fields overridden on top of the preset and
@@ -89,6 +97,82 @@ class ConfiguredSlamMethod:
                         settings=RunSettings(preset, device, seed, max_frames, progress,
                                              overwrite),
                         components=self.components)
+
+
+def parse_method_options(method: object, items: list[str]) -> dict[str, Any]:
+    """``--set`` items for ``method``, parsed and type-checked
+    (:func:`~egs_bench.slam.config.parse_overrides`) against its groups: a method whose
+    components declare their own config takes their fields too (``keyframes.n``)."""
+    from egs_bench.slam.config import GROUPS, parse_overrides
+
+    classes = method.config_classes() if isinstance(method, ConfiguredSlamMethod) else GROUPS
+    return parse_overrides(items, classes)
+
+
+def rerun(config_file: str | Path, out: str | Path, *, sequence: str | Path | None = None,
+          method: str | None = None, progress: bool = True, overwrite: bool = False
+          ) -> RunFolder:
+    """Run again what a run folder's ``config.yaml`` records: the same method, preset, seed,
+    device, frame count and every SLAM setting, on the same sequence (``sequence``: another
+    one). On the same machine the trajectory is the same, byte for byte (the CPU backend is
+    deterministic).
+
+    The method is looked up by its recorded name, or where ``method`` says (a
+    ``module:attribute`` path, for a method that is not registered under its name); it must
+    have the recorded name, and its components the recorded import paths, so a run made with
+    other parts (an oracle's) is refused rather than re-run with the built-in ones.
+
+    Raises:
+        InputError: the file is missing or is not a SLAM run's resolved configuration.
+        ConfigError: the method is unknown or not a SLAM-system method, its components differ
+            from the recorded ones, or a stored setting is invalid.
+        OutputError: ``out`` may not be written.
+    """
+    from egs_bench.datasets.registry import load_sequence
+    from egs_bench.errors import ConfigError, InputError
+    from egs_bench.runs.folder import CONFIG_FILE
+    from egs_bench.runs.folder import RunFolder as Folder
+    from egs_bench.runs.registry import get_method
+    from egs_bench.slam.components import SlamComponents
+    from egs_bench.slam.config import SlamConfig
+    from egs_bench.slam.runner import RunSettings, run_slam
+
+    path = Path(config_file)
+    if path.is_dir():
+        path = path / CONFIG_FILE
+    if not path.is_file():
+        raise InputError(path, "no such file (give a run folder's config.yaml)")
+    stored = Folder.open(path.parent).read_config()
+    kinds = {"method": str, "preset": str, "device": str, "seed": int, "frames": int,
+             "slam": dict}
+    for key, kind in kinds.items():
+        if not isinstance(stored.get(key), kind) or isinstance(stored.get(key), bool):
+            raise InputError(path, f"'{key}' must be a {kind.__name__}: not a SLAM run's "
+                                   "resolved configuration")
+    found = get_method(method or stored["method"])
+    if not isinstance(found, ConfiguredSlamMethod):
+        raise ConfigError(f"method {found.name!r} is not configured by a SlamConfig; "
+                          "only SLAM-system methods can be re-run from config.yaml")
+    if found.name != stored["method"]:
+        raise ConfigError(f"{path} is a run of method {stored['method']!r}, not of "
+                          f"{found.name!r}")
+    parts = found.components or SlamComponents()
+    recorded = stored.get("components")
+    if recorded is not None and recorded != parts.record():
+        roles = [role for role, part in parts.record().items()
+                 if not isinstance(recorded, dict) or recorded.get(role) != part]
+        raise ConfigError(f"{path}: the run's {', '.join(roles)} are not those of method "
+                          f"{found.name!r} (recorded: {recorded}); re-run it with the code "
+                          "that built those components")
+    config = SlamConfig.from_dict(stored["slam"], found.config_classes()).validate()
+    source = sequence if sequence is not None else Folder.open(path.parent).sequence_path
+    if source is None:
+        raise InputError(path.parent, "the run names no sequence folder; give the sequence")
+    seq = load_sequence(source, progress=progress)
+    settings = RunSettings(stored["preset"], stored["device"], stored["seed"], stored["frames"],
+                           progress, overwrite)
+    return run_slam(seq, out, method_name=found.name, config=config, settings=settings,
+                    components=found.components)
 
 
 _MONOGS = {

@@ -94,7 +94,8 @@ def run_slam(seq: SequenceView, out: str | Path, *, method_name: str, config: Sl
     preset, seed, progress = settings.preset, settings.seed, settings.progress
     n = check_inputs(seq, config, settings.max_frames)
     resolved = {"method": method_name, "preset": preset, "seed": seed, "device": device,
-                "frames": n, "slam": config.to_dict()}
+                "frames": n, "slam": config.to_dict(),
+                "components": (components or SlamComponents()).record()}
     run = RunFolder.create(out, method=method_name, sequence_name=seq.name,
                            sequence_path=seq.path, config=resolved,
                            overwrite=settings.overwrite)

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 import torch
@@ -25,7 +26,7 @@ import torch
 from egs_bench.geometry import invert_pose
 from egs_bench.geometry.lie import se3_exp, so3_log, twist_gradient
 from egs_bench.render import GaussianMap
-from egs_bench.slam.config import MotionModel
+from egs_bench.slam.config import MotionModel, TrackingConfig
 from egs_bench.slam.context import SlamContext
 from egs_bench.slam.convergence import ConvergenceTest
 from egs_bench.slam.crf import CameraResponse
@@ -205,6 +206,8 @@ def track_frame(ctx: SlamContext, gmap: GaussianMap, crf: CameraResponse,
 
 class GradientTracker:
     """The default :class:`~egs_bench.slam.components.Tracker`: :func:`track_frame`."""
+
+    Config: ClassVar[type] = TrackingConfig
 
     def __init__(self, ctx: SlamContext) -> None:
         self.ctx = ctx

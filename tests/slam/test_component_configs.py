@@ -1,0 +1,189 @@
+"""Components carry their own configuration: a plug-in's fields are set with ``--set`` and
+checked like a built-in's, listed on the configuration page, and recorded with the component's
+import path in ``config.yaml``; ``run --config`` re-runs a stored configuration to the same
+trajectory, and configuration files in the layouts of earlier versions still load."""
+
+from __future__ import annotations
+
+import dataclasses
+import shutil
+from dataclasses import dataclass
+from pathlib import Path
+from typing import ClassVar
+
+import pytest
+import yaml
+
+from egs_bench.cli import main
+from egs_bench.errors import ConfigError
+from egs_bench.slam import methods
+from egs_bench.slam.components import SlamComponents
+from egs_bench.slam.config import ALIASES, Bounds, KeyframeConfig, SlamConfig, cpu_preset
+from egs_bench.slam.keyframes import KeyframeCandidate, MonoGSKeyframes
+from tests.helpers.cli import assert_cli_error
+
+QUICK = ["--preset", "cpu", "--quiet", "--set", "init_iters=2", "--set", "tracking_iters=2",
+         "--set", "mapping_iters=1"]
+
+
+@dataclass(frozen=True)
+class EveryNthConfig(KeyframeConfig):
+    """MonoGS's window rules, and a keyframe every ``n`` frames."""
+
+    n: int = 2  # frames from one keyframe to the next
+    RANGES: ClassVar[dict[str, Bounds]] = {"n": Bounds(low=1, high=1000)}
+
+
+class EveryNthFrame:
+    """A keyframe policy with its own setting (``keyframes.n``)."""
+
+    Config: ClassVar[type] = EveryNthConfig
+
+    def __init__(self, ctx) -> None:
+        self.rules = ctx.cfg.keyframes
+        self.window = MonoGSKeyframes(self.rules, ctx.cfg.budget.window_size)
+
+    def is_keyframe(self, candidate: KeyframeCandidate) -> bool:
+        return candidate.frame_idx - candidate.last_kf_idx >= self.rules.n
+
+    def update_window(self, window, new_kf, visibility, poses_cw):
+        return self.window.update_window(window, new_kf, visibility, poses_cw)
+
+
+METHOD = dataclasses.replace(methods.BUILTIN["egs"], name="egs-every-nth",
+                             components=SlamComponents(keyframes=EveryNthFrame))
+METHOD_PATH = f"{__name__}:METHOD"
+
+
+def _run(args: list[str], capsys) -> tuple[int, str]:
+    code = main(["run", *args])
+    return code, capsys.readouterr().err
+
+
+def test_a_plugins_field_is_set_checked_and_recorded(tiny_sequence: Path, tmp_path: Path,
+                                                     capsys) -> None:
+    out = tmp_path / "n1"
+    code, err = _run(["--method", METHOD_PATH, "--seq", str(tiny_sequence), "--out", str(out),
+                      *QUICK, "--set", "keyframes.n=1"], capsys)
+    assert code == 0, err
+    stored = yaml.safe_load((out / "config.yaml").read_text())
+    assert stored["slam"]["keyframes"]["n"] == 1
+    assert stored["slam"]["keyframes"]["interval"] == KeyframeConfig().interval
+    assert stored["components"]["keyframes"] == {
+        "target": f"{__name__}:EveryNthFrame", "config": "keyframes",
+        "config_class": f"{__name__}:EveryNthConfig"}
+    assert (out / "keyframes.txt").read_text().split() == ["0", "1", "2", "3"]
+    for value, words in [("0", "SLAM option keyframes.n must be in [1, 1000]"),
+                         ("two", "SLAM option keyframes.n needs an integer")]:
+        code, err = _run(["--method", METHOD_PATH, "--seq", str(tiny_sequence), "--out",
+                          str(tmp_path / f"bad-{value}"), *QUICK, "--set", f"keyframes.n={value}"],
+                         capsys)
+        assert_cli_error(code, err, 2, words)
+        assert not (tmp_path / f"bad-{value}").exists()
+    # a built-in method has no such field
+    code, err = _run(["--method", "egs", "--seq", str(tiny_sequence), *QUICK,
+                      "--set", "keyframes.n=3"], capsys)
+    assert_cli_error(code, err, 2, "unknown SLAM option 'keyframes.n'")
+
+
+def test_a_plugins_config_is_the_group_the_component_reads() -> None:
+    cfg = METHOD.config("cpu")
+    assert isinstance(cfg.keyframes, EveryNthConfig) and cfg.keyframes.n == 2
+    assert cfg.budget == cpu_preset().budget  # the preset still decides the budget
+    three = METHOD.with_options(methods.parse_method_options(METHOD, ["keyframes.n=3"]))
+    assert three.config("cpu").keyframes.n == 3
+    assert SlamConfig.from_dict(three.config("cpu").to_dict(),
+                                METHOD.config_classes()) == three.config("cpu")
+    with pytest.raises(TypeError, match="extending KeyframeConfig"):
+        cpu_preset().with_groups({"keyframes": dict})
+    assert not isinstance(methods.BUILTIN["egs"].config("cpu").keyframes, EveryNthConfig)
+
+
+def test_the_configuration_page_lists_a_plugins_fields() -> None:
+    from tests.docs.conftest import _load
+
+    reference = _load("config_reference")
+    page = reference.render(METHOD.config_classes())
+    keyframes = page.split("## `keyframes`")[1].split("## ")[0]
+    row = next(line for line in keyframes.splitlines() if line.startswith("| `n`"))
+    assert "in [1, 1000]" in row and "frames from one keyframe to the next" in row
+    assert "| `interval`" in keyframes  # the built-in fields it extends, with their docs
+    assert "| `n`" not in reference.render().split("## `keyframes`")[1]
+
+
+def test_config_yaml_names_each_component_so_an_oracle_run_differs_from_egs() -> None:
+    from tests.slam.test_oracle_tracking import _fake_sequence, _script
+
+    plain = SlamComponents().record()
+    assert plain["tracker"]["target"] == "egs_bench.slam.tracker:GradientTracker"
+    assert plain["mapper"]["target"] == "egs_bench.slam.mapper:Mapper"
+    assert [t["name"] for t in plain["loss_terms"]] == ["photometric", "depth", "events"]
+    seq, _ = _fake_sequence(lambda i: (50_000, 100_000))
+    oracle = _script().oracle_components(seq, None, None, exposure0=True).record()
+    assert oracle["tracker"] != plain["tracker"] and oracle["mapper"] != plain["mapper"]
+    assert oracle["keyframes"] == plain["keyframes"]
+
+
+@pytest.mark.parametrize("method", ["egs", METHOD_PATH])
+def test_run_config_reproduces_the_trajectory_byte_for_byte(method: str, tiny_sequence: Path,
+                                                            tmp_path: Path, capsys) -> None:
+    first, again = tmp_path / "first", tmp_path / "again"
+    code, err = _run(["--method", method, "--seq", str(tiny_sequence), "--out", str(first),
+                      *QUICK, "--set", "lambda_d=0.2", "--max-frames", "3"], capsys)
+    assert code == 0, err
+    where = [] if method == "egs" else ["--method", method]  # not registered by its name
+    code, err = _run(["--config", str(first / "config.yaml"), "--out", str(again), "--quiet",
+                      *where], capsys)
+    assert code == 0, err
+    assert (again / "trajectory.txt").read_bytes() == (first / "trajectory.txt").read_bytes()
+    assert yaml.safe_load((again / "config.yaml").read_text()) == \
+        yaml.safe_load((first / "config.yaml").read_text())
+    code, err = _run(["--config", str(first / "config.yaml"), "--out", str(tmp_path / "x"),
+                      "--seed", "3"], capsys)
+    assert_cli_error(code, err, 2, "--config re-runs the stored --seed")
+
+
+def test_run_config_refuses_a_run_made_with_other_components(tiny_sequence: Path,
+                                                             tmp_path: Path, capsys) -> None:
+    first = tmp_path / "first"
+    code, err = _run(["--method", "egs", "--seq", str(tiny_sequence), "--out", str(first),
+                      *QUICK, "--max-frames", "2"], capsys)
+    assert code == 0, err
+    stored = yaml.safe_load((first / "config.yaml").read_text())
+    stored["components"]["tracker"]["target"] = "oracle_tracking:oracle_components.<locals>.tracker"
+    (first / "config.yaml").write_text(yaml.safe_dump(stored))
+    code, err = _run(["--config", str(first / "config.yaml"), "--out", str(tmp_path / "x")],
+                     capsys)
+    assert_cli_error(code, err, 2, "the run's tracker are not those of method 'egs'")
+
+
+def test_a_config_yaml_in_the_earlier_layouts_still_loads_and_reruns(tiny_sequence: Path,
+                                                                      tmp_path: Path,
+                                                                      capsys) -> None:
+    """The layout written before components were recorded (groups, no ``components``) re-runs
+    to the same trajectory; the flat layout of earlier versions (``kf_interval``,
+    ``n_segments``, unique field names) loads to the same configuration."""
+    first = tmp_path / "first"
+    code, err = _run(["--method", "monogs", "--seq", str(tiny_sequence), "--out", str(first),
+                      *QUICK, "--max-frames", "2"], capsys)
+    assert code == 0, err
+    stored = yaml.safe_load((first / "config.yaml").read_text())
+    old = tmp_path / "old"
+    shutil.copytree(first, old)
+    del stored["components"]
+    (old / "config.yaml").write_text(yaml.safe_dump(stored))
+    code, err = _run(["--config", str(old / "config.yaml"), "--out", str(tmp_path / "again"),
+                      "--quiet"], capsys)
+    assert code == 0, err
+    assert (tmp_path / "again" / "trajectory.txt").read_bytes() == \
+        (first / "trajectory.txt").read_bytes()
+
+    cfg = SlamConfig.from_dict(stored["slam"])
+    flat = {name: cfg.get(path) for name, path in ALIASES.items()}
+    assert {"kf_interval", "n_segments", "lambda_d"} <= set(flat)
+    # a name two groups share has no flat spelling: such a field keeps its default
+    named = {path: cfg.get(path) for path in set(ALIASES.values())}
+    assert SlamConfig.from_dict(flat) == SlamConfig().replace(**named)
+    assert SlamConfig.from_dict(flat).budget.segments == cfg.budget.segments
+    with pytest.raises(ConfigError, match="unknown SLAM option 'no_such_option'"):
+        SlamConfig.from_dict({"no_such_option": 1})
