@@ -34,7 +34,7 @@ import re
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import yaml
 
@@ -165,7 +165,11 @@ def _mapping(value: Any, what: str, where: Path | str) -> dict[str, Any]:
     return dict(value)
 
 
-def _sub_options(cls, data: Any, keys: set[str], what: str, where: Path | str):
+_Options = TypeVar("_Options", "LocalOptions", "SlurmOptions")
+
+
+def _sub_options(cls: type[_Options], data: Any, keys: set[str], what: str, where: Path | str
+                 ) -> _Options:
     data = _mapping(data, what, where)
     unknown = sorted(set(data) - keys)
     if unknown:
