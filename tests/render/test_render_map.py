@@ -1,4 +1,4 @@
-"""GaussianMap: insertion from depth, pruning, .ply round trip, demo render."""
+"""GaussianMap: insertion from depth, pruning, .ply round trip."""
 
 from __future__ import annotations
 
@@ -135,18 +135,6 @@ def test_load_ply_errors_name_the_file(tmp_path: Path) -> None:
     PlyData([PlyElement.describe(pts, "vertex")]).write(str(tmp_path / "points.ply"))
     with pytest.raises(InputError, match="missing properties"):
         load_ply(tmp_path / "points.ply")
-
-
-def test_demo_render_writes_png(tmp_path: Path) -> None:
-    from egs_bench.images import read_ldr_image
-    from egs_bench.render.demo import render_demo
-
-    out = tmp_path / "demo.png"
-    gmap = render_demo(out, width=64, height=40)
-    img = read_ldr_image(out)
-    assert img.shape == (40, 64 * 4 + 12, 3) and len(gmap) > 500
-    # the re-render of the input view resembles the input (mean abs error of 8-bit sRGB)
-    assert np.abs(img[:, :64].astype(float) - img[:, 68:132]).mean() < 25
 
 
 def test_clone_and_to_are_detached_copies() -> None:
