@@ -6,7 +6,10 @@ files are collected.)"""
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    import numpy as np
 
 
 class PlaneSource:
@@ -30,7 +33,7 @@ class PlaneSource:
         self.speed = speed_mps
         self.distance = distance
 
-    def pose(self, t_us: int):
+    def pose(self, t_us: int) -> np.ndarray:
         import numpy as np
 
         pose = np.eye(4)

@@ -59,7 +59,7 @@ class _Page(HTMLParser):
         self._cell: list[str] | None = None
         self.feed(path.read_text())
 
-    def handle_starttag(self, tag, attrs) -> None:
+    def handle_starttag(self, tag: str, attrs: list[tuple[str, str | None]]) -> None:
         a = dict(attrs)
         if tag == "table":
             self._table = a.get("id", "")
@@ -73,14 +73,14 @@ class _Page(HTMLParser):
         elif tag == "a":
             self.links.append(a["href"])
 
-    def handle_endtag(self, tag) -> None:
+    def handle_endtag(self, tag: str) -> None:
         if tag in ("td", "th") and self._cell is not None and self._table is not None:
             self.tables[self._table][-1].append("".join(self._cell).strip())
             self._cell = None
         elif tag == "table":
             self._table = None
 
-    def handle_data(self, data) -> None:
+    def handle_data(self, data: str) -> None:
         if self._cell is not None:
             self._cell.append(data)
 
