@@ -20,7 +20,7 @@ from tests.helpers.cli import assert_cli_error
 
 BASE_SLAM = {"event_tracking": True, "event_mapping": True, "crf": "learnable",
              "blur_model": True, "lambda_d": 0.1}
-METHODS = {
+METHODS: dict[str, dict[str, Any]] = {
     "egs": {},
     "egs-no-event-tracking": {"event_tracking": False},
     "egs-no-event-mapping": {"event_mapping": False},
@@ -35,7 +35,7 @@ ATE_CM = {"egs": 1.0, "egs-no-event-tracking": 3.0, "egs-no-event-mapping": 1.5,
 
 
 def _runs(root: Path, methods: dict[str, dict[str, Any]] = METHODS,
-          seqs: tuple[str, ...] = ("room0", "office1"), seeds: tuple[int, ...] = (0, 1)) -> None:
+          seqs: tuple[str, ...] = ("room0", "office1"), seeds: tuple[int, ...] = (0, 1)) -> Path:
     for m, changes in methods.items():
         for si, seq in enumerate(seqs):
             for seed in seeds:

@@ -11,6 +11,8 @@ from typing import TYPE_CHECKING, Any
 if TYPE_CHECKING:
     import numpy as np
 
+    from egs_bench.datasets.pipeline import LatentFrame
+
 
 class PlaneSource:
     """Test scene: a textured fronto-parallel plane at z = ``distance`` seen by a camera that
@@ -40,7 +42,7 @@ class PlaneSource:
         pose[0, 3] = self.speed * t_us * 1e-6
         return pose
 
-    def render(self, t_us: int):
+    def render(self, t_us: int) -> LatentFrame:
         import cv2
         import numpy as np
 

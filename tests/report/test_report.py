@@ -62,16 +62,16 @@ class _Page(HTMLParser):
     def handle_starttag(self, tag: str, attrs: list[tuple[str, str | None]]) -> None:
         a = dict(attrs)
         if tag == "table":
-            self._table = a.get("id", "")
+            self._table = a.get("id") or ""
             self.tables[self._table] = []
         elif tag == "tr" and self._table is not None:
             self.tables[self._table].append([])
         elif tag in ("td", "th") and self._table is not None:
             self._cell = []
         elif tag == "img" and "src" in a:  # the 3D view's panel gets its sources from its script
-            self.images.append(a["src"])
+            self.images.append(a["src"] or "")
         elif tag == "a":
-            self.links.append(a["href"])
+            self.links.append(a["href"] or "")
 
     def handle_endtag(self, tag: str) -> None:
         if tag in ("td", "th") and self._cell is not None and self._table is not None:
