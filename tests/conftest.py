@@ -31,6 +31,6 @@ def shared_data() -> Path:
 
 
 @pytest.fixture(scope="session")
-def tiny_sequence(tmp_path_factory) -> Path:
+def tiny_sequence(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A 4-frame 64x48 blurred sequence with events (read-only: copy before modifying)."""
     return make_plane_sequence(tmp_path_factory.mktemp("seq") / "plane")

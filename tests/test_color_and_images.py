@@ -3,6 +3,8 @@ I/O module (one codec; 8-bit colour and 16-bit depth checked on read)."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 import torch
@@ -80,7 +82,7 @@ def test_ldr_response_matches_the_colour_functions() -> None:
                                rtol=0.02)
 
 
-def test_ldr_image_roundtrip_and_refusals(tmp_path) -> None:
+def test_ldr_image_roundtrip_and_refusals(tmp_path: Path) -> None:
     rng = np.random.default_rng(1)
     img = rng.integers(0, 256, (6, 9, 3), dtype=np.uint8)
     write_ldr_image(tmp_path / "a.png", img)
@@ -104,7 +106,7 @@ def test_ldr_image_roundtrip_and_refusals(tmp_path) -> None:
                                                           "junk.png"]
 
 
-def test_depth_png_roundtrip_and_refusal(tmp_path) -> None:
+def test_depth_png_roundtrip_and_refusal(tmp_path: Path) -> None:
     raw = np.arange(12, dtype=np.uint16).reshape(3, 4) * 5000
     write_depth_png(tmp_path / "d.png", raw)
     np.testing.assert_array_equal(read_depth_png(tmp_path / "d.png"), raw)

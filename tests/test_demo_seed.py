@@ -17,7 +17,8 @@ def _finished_run(run_dir: Path, seq: Path, seed: int) -> None:
     run.mark_done()
 
 
-def test_a_finished_run_of_another_seed_is_refused_and_kept(tmp_path, tiny_sequence):
+def test_a_finished_run_of_another_seed_is_refused_and_kept(tmp_path: Path, tiny_sequence: Path
+                                                            ) -> None:
     out = tmp_path / "demo"
     run_dir = out / "runs" / tiny_sequence.name / "egs"
     _finished_run(run_dir, tiny_sequence, seed=0)
@@ -29,7 +30,7 @@ def test_a_finished_run_of_another_seed_is_refused_and_kept(tmp_path, tiny_seque
     assert RunFolder.open(run_dir).read_status().state == "done"
 
 
-def test_a_finished_run_of_the_same_seed_is_reused(tmp_path, tiny_sequence):
+def test_a_finished_run_of_the_same_seed_is_reused(tmp_path: Path, tiny_sequence: Path) -> None:
     out = tmp_path / "demo"
     run_dir = out / "runs" / tiny_sequence.name / "egs"
     _finished_run(run_dir, tiny_sequence, seed=2)

@@ -1,3 +1,5 @@
+from pathlib import Path
+
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
@@ -51,7 +53,7 @@ def test_interpolate_trajectory_matches_pairwise() -> None:
     np.testing.assert_allclose(out[1], interpolate_pose(poses[1], poses[2], 0.5), atol=1e-9)
 
 
-def test_tum_roundtrip(tmp_path) -> None:
+def test_tum_roundtrip(tmp_path: Path) -> None:
     rng = np.random.default_rng(3)
     poses = np.stack([_random_pose(rng) for _ in range(4)])
     write_tum(tmp_path / "t.txt", np.arange(4) * 0.1, poses)
@@ -70,7 +72,7 @@ def test_tum_roundtrip(tmp_path) -> None:
         ("1 0 0 0 0 0 0 1\n0 0 0 0 0 0 0 1\n", "not sorted"),
     ],
 )
-def test_tum_bad_input(tmp_path, text: str, message: str) -> None:
+def test_tum_bad_input(tmp_path: Path, text: str, message: str) -> None:
     path = tmp_path / "bad.txt"
     path.write_text(text)
     with pytest.raises(InputError, match=message) as info:
@@ -78,7 +80,7 @@ def test_tum_bad_input(tmp_path, text: str, message: str) -> None:
     assert str(path) in str(info.value)
 
 
-def test_tum_missing_file(tmp_path) -> None:
+def test_tum_missing_file(tmp_path: Path) -> None:
     with pytest.raises(InputError, match="not found"):
         read_tum(tmp_path / "missing.txt")
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import io
+from pathlib import Path
 
 import pytest
 
@@ -17,7 +18,7 @@ class _Terminal(io.StringIO):
 
 
 
-def test_without_a_terminal_a_run_writes_a_line_per_tenth_and_no_redraws():
+def test_without_a_terminal_a_run_writes_a_line_per_tenth_and_no_redraws() -> None:
     log = io.StringIO()
     with ProgressBar(24, "egs office", unit="frame", file=log) as bar:
         for i in range(24):
@@ -33,7 +34,7 @@ def test_without_a_terminal_a_run_writes_a_line_per_tenth_and_no_redraws():
     assert counts == sorted(set(counts))  # each line reports progress; none repeats
 
 
-def test_a_long_silent_phase_gets_a_line_every_half_minute():
+def test_a_long_silent_phase_gets_a_line_every_half_minute() -> None:
     log, clock = io.StringIO(), FakeClock()
     bar = ProgressBar(100, "egs office", unit="frame", file=log, clock=clock)
     bar.set_postfix_str("map init 0/150 iterations, compiling kernels…")  # the start: a line
@@ -51,7 +52,7 @@ def test_a_long_silent_phase_gets_a_line_every_half_minute():
     assert len(log.getvalue().splitlines()) == 3  # the final line, once
 
 
-def test_non_finite_values_are_left_out_not_shown_as_nan():
+def test_non_finite_values_are_left_out_not_shown_as_nan() -> None:
     assert postfix_text({"loss": float("nan"), "fps": 1.23456, "gaussians": 7}) == (
         "fps=1.235, gaussians=7")
     assert postfix_text({"loss": float("inf")}) == ""
@@ -63,7 +64,7 @@ def test_non_finite_values_are_left_out_not_shown_as_nan():
     assert "gaussians=5" in term.getvalue()
 
 
-def test_on_a_terminal_it_is_a_bar_and_disabled_it_is_silent():
+def test_on_a_terminal_it_is_a_bar_and_disabled_it_is_silent() -> None:
     term = _Terminal()
     with ProgressBar(4, "gen", unit="frame", file=term) as bar:
         bar.update(4)
@@ -75,7 +76,8 @@ def test_on_a_terminal_it_is_a_bar_and_disabled_it_is_silent():
     assert list(tracked([1, 2, 3], "x", enabled=False)) == [1, 2, 3]
 
 
-def test_run_quiet_also_silences_the_built_in_sequence_generation(monkeypatch):
+def test_run_quiet_also_silences_the_built_in_sequence_generation(monkeypatch: pytest.MonkeyPatch
+                                                                  ) -> None:
     import egs_bench.datasets.registry as registry
     from egs_bench.cli import main
 
@@ -84,7 +86,7 @@ def test_run_quiet_also_silences_the_built_in_sequence_generation(monkeypatch):
     class _Stop(Exception):
         pass
 
-    def fake_load(name, progress=True):
+    def fake_load(name, progress=True) -> None:
         seen["progress"] = progress
         raise _Stop
 
@@ -95,7 +97,8 @@ def test_run_quiet_also_silences_the_built_in_sequence_generation(monkeypatch):
 
 
 @pytest.mark.slow
-def test_make_synthetic_says_it_compiles_on_a_cold_cache_and_not_on_a_warm_one(tmp_path):
+def test_make_synthetic_says_it_compiles_on_a_cold_cache_and_not_on_a_warm_one(tmp_path: Path
+                                                                               ) -> None:
     import os
     import subprocess
     import sys

@@ -27,12 +27,12 @@ def _entry_kernels_in_source() -> set[str]:
     return names
 
 
-def test_the_kernel_list_is_every_cached_entry_kernel_of_the_sources():
+def test_the_kernel_list_is_every_cached_entry_kernel_of_the_sources() -> None:
     assert set(cached_kernels()) == _entry_kernels_in_source()
     assert "egs_bench.render.numba_kernels.raster_bwd" in cached_kernels()
 
 
-def test_no_module_outside_the_list_defines_cached_kernels():
+def test_no_module_outside_the_list_defines_cached_kernels() -> None:
     from pathlib import Path
 
     import egs_bench
@@ -45,7 +45,7 @@ def test_no_module_outside_the_list_defines_cached_kernels():
 
 
 @pytest.mark.slow
-def test_warm_up_reaches_every_kernel(capsys):
+def test_warm_up_reaches_every_kernel(capsys: pytest.CaptureFixture[str]) -> None:
     said: list[str] = []
     report = warm_up(say=said.append)
     assert report.missing == ()

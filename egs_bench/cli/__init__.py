@@ -9,17 +9,10 @@ import importlib
 import os
 import sys
 
-from egs_bench.caches import check_numba_cache_dir, numba_cache_dir
-
-# Before torch/numba load: their OpenMP pools otherwise spin-wait and steal each other's cores
-# (measured 4x slower rendering on 2 cores), and compiled numba kernels are cached where
-# `make setup`'s warm-up put them (egs_bench/caches.py).
-os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
-os.environ["NUMBA_CACHE_DIR"] = str(numba_cache_dir())
-
 from rich.console import Console
 from rich.text import Text
 
+from egs_bench.caches import ENV_NUMBA, check_numba_cache_dir, numba_cache_dir
 from egs_bench.cli.app import OPTIONS, app, err
 from egs_bench.errors import (
     EXIT_DATA,
@@ -47,6 +40,19 @@ _COMMAND_MODULES = (
 )
 
 
+def prepare_process_environment() -> None:
+    """Set, for this process and its children, what torch and numba read when they load.
+
+    Called by :func:`main` before any command imports them (importing this module sets
+    nothing): OpenMP threads that sleep when idle (``OMP_WAIT_POLICY=PASSIVE`` unless set),
+    as torch's and numba's pools otherwise spin-wait and steal each other's cores (measured 4x
+    slower rendering on 2 cores); and numba's kernel cache at the location of
+    :func:`egs_bench.caches.numba_cache_dir`, where ``make setup``'s warm-up put the kernels.
+    """
+    os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+    os.environ[ENV_NUMBA] = str(numba_cache_dir())
+
+
 def _register_commands() -> None:
     for name in _COMMAND_MODULES:
         importlib.import_module(f"egs_bench.cli.{name}")
@@ -59,6 +65,7 @@ def main(argv: list[str] | None = None) -> int:
     3 data error (a file is missing, malformed or cannot be written), 70 internal error (a bug;
     ``--debug`` shows the traceback), 130 / 143 / 129 interrupted by SIGINT / SIGTERM / SIGHUP.
     """
+    prepare_process_environment()
     _register_commands()
     try:
         check_numba_cache_dir()

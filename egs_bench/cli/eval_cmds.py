@@ -7,10 +7,11 @@ Thin wrappers: each parses its options and calls a library function in ``egs_ben
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import typer
 from rich.table import Table
+from typer._click import Context
 from typer.core import TyperCommand
 
 from egs_bench.cli.app import OUT_REQUIRED, QUIET, app, comma_list, counted, output_path
@@ -30,7 +31,9 @@ from egs_bench.cli.choices import (
 from egs_bench.eval.protocols import DEFAULT_PROTOCOL
 
 if TYPE_CHECKING:
+    from egs_bench.eval.ate import AteResult
     from egs_bench.eval.metrics_file import RunMetrics
+    from egs_bench.eval.rpe import RpeResult
 
 
 def _fmt(value: float | None, digits: int) -> str:
@@ -97,7 +100,7 @@ def _roles(first: Path, second: Path, est_first: bool, command: str) -> tuple[Pa
     return gt, est
 
 
-def _print_stats(title: str, unit: str, r) -> None:  # AteResult | RpeResult
+def _print_stats(title: str, unit: str, r: AteResult | RpeResult) -> None:
     """One-row table of the error statistics of an ATE or RPE result, and the Sim(3) scale."""
     table = Table(title=title)
     for col in ("rmse", "mean", "median", "std", "min", "max"):
@@ -163,11 +166,11 @@ def _evo_alignment_args(args: list[str]) -> list[str]:
 class _EvoSpellings(TyperCommand):
     """A command that also reads evo's alignment flags (:func:`_evo_alignment_args`)."""
 
-    def parse_args(self, ctx, args: list[str]) -> list[str]:  # click.Context
+    def parse_args(self, ctx: Context, args: list[str]) -> list[str]:
         return super().parse_args(ctx, _evo_alignment_args(args))
 
 
-def _save_option(metric: str):  # a typer OptionInfo
+def _save_option(metric: str) -> Any:  # typer.Option's OptionInfo, typed Any by typer
     return typer.Option(None, "--save-results", "--save_results",
                         help=f"Also write the {metric} statistics, settings and per-pose errors "
                              "to this JSON file (evo's option; JSON, not evo's .zip).")

@@ -114,8 +114,8 @@ def render_demo_cmd(
                                    help="Replace an existing PNG at --out (and PLY at --ply)."),
 ) -> None:
     """Build a Gaussian map from a synthetic RGB-D view and render it (a visual self-check)."""
+    from egs_bench.demo import render_demo
     from egs_bench.outputs import prepare_output
-    from egs_bench.render.demo import render_demo
     from egs_bench.render.ply import save_ply
 
     prepare_output(out, "png", overwrite=overwrite)

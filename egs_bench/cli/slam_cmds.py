@@ -27,7 +27,7 @@ def run_cmd(
                                     "paper (the paper's iterations and resolution, GPU-sized) "
                                     "or cpu (same method, reduced resolution/iterations)."),
     out: Path | None = typer.Option(None, "--out", "-o",
-                                    help="Run folder to write (default runs/<method>/<seq>)."),
+                                    help="Run folder to write (default runs/<seq>/<method>)."),
     device: str = typer.Option("auto", "--device",
                                help="auto (CUDA when present), cpu, cuda or cuda:N."),
     seed: int = typer.Option(0, "--seed", min=0, max=SEED_MAX,
@@ -57,6 +57,7 @@ def run_cmd(
     from egs_bench.cli.eval_cmds import evaluate_and_print
     from egs_bench.datasets.registry import load_sequence
     from egs_bench.errors import ConfigError
+    from egs_bench.runs.locations import run_location
     from egs_bench.runs.registry import describe_run, get_method, supports_overwrite, with_options
     from egs_bench.slam.methods import parse_method_options
 
@@ -83,7 +84,7 @@ def run_cmd(
     if overwrite and not supports_overwrite(m):
         raise ConfigError(f"method {m.name!r} does not support --overwrite; choose a new --out")
     sequence = load_sequence(seq, progress=not quiet)
-    out_dir = out or Path("runs") / m.name.replace(":", "_") / sequence.name
+    out_dir = out or run_location(Path(), sequence.name, m.name)
     extra: dict = {"overwrite": True} if overwrite else {}
     typer.echo(describe_run(m, sequence, preset=preset, device=device, seed=seed))
     run = m.run(sequence, out_dir, preset=preset, device=device, seed=seed,

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from types import TracebackType
+from typing import Any
 
 import numpy as np
 
@@ -145,7 +147,8 @@ class EventWriter:
     def __enter__(self) -> EventWriter:
         return self
 
-    def __exit__(self, exc_type, exc, tb) -> None:
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
+                 tb: TracebackType | None) -> None:
         if exc_type is None:
             self.close()
         else:
@@ -320,14 +323,14 @@ _FILTER_NAMES = {32001: "Blosc", 32004: "LZ4", 32008: "Bitshuffle", 32015: "Zstd
                  32026: "Blosc2", 307: "bzip2"}
 
 
-def _read_error(path: Path, file, exc: OSError) -> InputError:
+def _read_error(path: Path, file: Any, exc: OSError) -> InputError:
     """The one-line error for an HDF5 read failure: a compression filter this installation
     lacks is named as such (HDF5 itself only says it cannot open its plugin directory)."""
     import h5py
 
     missing: set[str] = set()
     if file is not None:
-        def visit(_name: str, obj) -> None:
+        def visit(_name: str, obj: object) -> None:
             if isinstance(obj, h5py.Dataset):
                 plist = obj.id.get_create_plist()
                 for i in range(plist.get_nfilters()):

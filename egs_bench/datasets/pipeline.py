@@ -167,7 +167,9 @@ class _Sampler:
                 yield cur
             prev = cur
 
-    def _refine(self, a, b, depth: int) -> Iterator[tuple[int, LatentFrame, np.ndarray]]:
+    def _refine(self, a: tuple[int, LatentFrame, np.ndarray],
+                b: tuple[int, LatentFrame, np.ndarray], depth: int
+                ) -> Iterator[tuple[int, LatentFrame, np.ndarray]]:
         if depth > 0 and b[0] - a[0] >= 2:
             change = np.percentile(np.abs(b[2] - a[2]), self.config.log_percentile)
             if change > self.config.max_log_step:

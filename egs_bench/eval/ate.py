@@ -15,13 +15,16 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Literal, get_args
+from typing import TYPE_CHECKING, Any, Literal, get_args
 
 import numpy as np
 
 from egs_bench.errors import ConfigError, InputError
 from egs_bench.eval.protocols import Alignment
 from egs_bench.geometry import Trajectory, read_tum
+
+if TYPE_CHECKING:
+    from evo.core.trajectory import PoseTrajectory3D
 
 ALIGNMENTS: tuple[Alignment, ...] = get_args(Alignment)
 MIN_MATCHED_POSES = 3  # Umeyama needs >= 3 non-collinear points for a unique rotation
@@ -106,7 +109,7 @@ class AteResult:
         }
 
 
-def _to_evo(traj: Trajectory):  # -> evo.core.trajectory.PoseTrajectory3D
+def _to_evo(traj: Trajectory) -> PoseTrajectory3D:
     from evo.core.trajectory import PoseTrajectory3D
 
     return PoseTrajectory3D(poses_se3=list(traj.poses), timestamps=np.asarray(traj.timestamps))
@@ -152,7 +155,8 @@ def merge_duplicate_stamps(traj: Trajectory, name: str | Path) -> tuple[Trajecto
 
 def associate(est: Trajectory, gt: Trajectory, *, align: Alignment = "se3",
               max_diff_s: float = DEFAULT_MAX_DIFF_S, est_name: str | Path = "estimate",
-              gt_name: str | Path = "ground truth", what: str = "ATE"):
+              gt_name: str | Path = "ground truth", what: str = "ATE"
+              ) -> tuple[PoseTrajectory3D, PoseTrajectory3D, tuple[str, ...]]:
     """Validate two trajectories and associate them by nearest timestamp, as ``evo_ape`` and
     ``evo_rpe`` do (``evo.core.sync.associate_trajectories``), after merging repeated time
     stamps (:func:`merge_duplicate_stamps`).

@@ -22,11 +22,14 @@ from collections import Counter
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from egs_bench.eval.results import EVALUATED, METRICS, ResultSet, RunResult
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 MAX_LABEL_KEYS = 3
 LOST = "L"
@@ -199,7 +202,8 @@ def cell_notes(row: RowKey, sequence: str, cell: Cell | None) -> list[str]:
     return notes
 
 
-def results_frame(results: ResultSet, metrics: tuple[str, ...] | list[str] = tuple(METRICS)):
+def results_frame(results: ResultSet, metrics: tuple[str, ...] | list[str] = tuple(METRICS)
+                  ) -> pd.DataFrame:
     """Long-format table: one row per run, metric columns in stored units, a status column.
 
     Columns: ``method, settings, sequence, seed, status, frames_processed, frames_in_sequence``,

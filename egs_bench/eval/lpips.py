@@ -114,7 +114,7 @@ def _package_data_dir(package: str) -> Path | None:
 
 
 # ------------------------------------------------------------------------- readers per format
-def _check_shapes(net: LpipsNet, convs, heads, path: Path) -> None:
+def _check_shapes(net: LpipsNet, convs: list, heads: list, path: Path) -> None:
     expected_convs = len(_TV_CONV_INDEX[net])
     if len(convs) != expected_convs or len(heads) != 5:
         raise InputError(path, f"expected {expected_convs} conv layers and 5 heads for "
@@ -161,7 +161,7 @@ def _read_npz(path: Path, net: LpipsNet) -> tuple[list, list, str, str]:
     return convs, heads, source, sha
 
 
-def _write_npz(path: Path, convs, heads, source: str, source_sha256: str) -> None:
+def _write_npz(path: Path, convs: list, heads: list, source: str, source_sha256: str) -> None:
     from egs_bench.fileio import atomic_path
 
     # plain arrays + unicode scalars only: loadable with allow_pickle=False

@@ -232,8 +232,11 @@ def _value(board: Leaderboard, row: RowKey, seq: str, key: str) -> tuple[Stat | 
 
 
 def _matrix(board: Leaderboard, rows: Sequence[RowKey], stubs: list[list[str]],
-            columns: list[Column], seq_of: Callable[[Column], str]):
-    values, markers, complete = [], [], []
+            columns: list[Column], seq_of: Callable[[Column], str]
+            ) -> tuple[list[list[Stat | None]], list[list[str]], list[list[bool]]]:
+    values: list[list[Stat | None]] = []
+    markers: list[list[str]] = []
+    complete: list[list[bool]] = []
     for row in rows:
         vs, ms = [], []
         for col in columns:

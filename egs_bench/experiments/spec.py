@@ -34,12 +34,12 @@ import re
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import yaml
 
 from egs_bench.errors import ConfigError, InputError
-from egs_bench.runs.locations import RUNS_DIR
+from egs_bench.runs.locations import folder_name, relative_run_path, run_location
 
 DEVICES = ("cpu", "cuda")
 _KEYS = {"methods", "sequences", "seeds", "preset", "device", "max_frames", "set", "settings",
@@ -47,7 +47,6 @@ _KEYS = {"methods", "sequences", "seeds", "preset", "device", "max_frames", "set
 _LOCAL_KEYS = {"jobs", "threads_per_job", "cpu_budget", "timeout_min"}
 _SLURM_KEYS = {"partition", "timeout_min", "gpus_per_node", "cpus_per_task", "mem_gb",
                "array_parallelism", "additional_parameters", "name"}
-_SAFE = re.compile(r"[^A-Za-z0-9._=+-]+")
 
 
 @dataclass(frozen=True)
@@ -166,7 +165,11 @@ def _mapping(value: Any, what: str, where: Path | str) -> dict[str, Any]:
     return dict(value)
 
 
-def _sub_options(cls, data: Any, keys: set[str], what: str, where: Path | str):
+_Options = TypeVar("_Options", "LocalOptions", "SlurmOptions")
+
+
+def _sub_options(cls: type[_Options], data: Any, keys: set[str], what: str, where: Path | str
+                 ) -> _Options:
     data = _mapping(data, what, where)
     unknown = sorted(set(data) - keys)
     if unknown:
@@ -327,7 +330,7 @@ def _resolved_config(method: str, preset: str, options: Mapping[str, Any],
 
 
 def _tag(parts: Sequence[str]) -> str:
-    text = _SAFE.sub("_", "__".join(p for p in parts if p))
+    text = folder_name("__".join(p for p in parts if p))
     if len(text) > 60:
         text = text[:48] + "-" + hashlib.sha256(text.encode()).hexdigest()[:8]
     return text
@@ -359,7 +362,7 @@ def expand(spec: SweepSpec, sequences: Mapping[str, Path], out: Path | None = No
         seq_name = seq.name
         fingerprint = sequence_fingerprint(seq_dir)
         for method in spec.methods:
-            mname = _SAFE.sub("_", _method_name(method, where))
+            mname = _method_name(method, where)
             for sname, soptions in spec.settings.items():
                 options = {**base_options, **soptions}
                 for preset in spec.presets:
@@ -368,9 +371,9 @@ def expand(spec: SweepSpec, sequences: Mapping[str, Path], out: Path | None = No
                         tag = _tag([sname if named_settings else "",
                                     preset if len(spec.presets) > 1 else "",
                                     device if len(spec.devices) > 1 else ""])
-                        folder = mname + (f"__{tag}" if tag else "")
                         for seed in spec.seeds:
-                            run_id = f"{_SAFE.sub('_', seq_name)}/{folder}/seed{seed}"
+                            run_id = relative_run_path(seq_name, mname, variant=tag,
+                                                       seed=seed)
                             if run_id in seen:
                                 raise InputError(where, f"two runs map to the folder {run_id!r}"
                                                         " (the same sequence listed twice?)")
@@ -385,7 +388,9 @@ def expand(spec: SweepSpec, sequences: Mapping[str, Path], out: Path | None = No
                                 identity, sort_keys=True, default=str).encode()).hexdigest()
                             runs.append(RunSpec(
                                 run_id=run_id, sweep_dir=str(out),
-                                run_dir=str(out / RUNS_DIR / run_id), method=method,
+                                run_dir=str(run_location(out, seq_name, mname,
+                                                         variant=tag, seed=seed)),
+                                method=method,
                                 sequence=str(seq_dir), sequence_name=seq_name, seed=seed,
                                 preset=preset, device=device, max_frames=spec.max_frames,
                                 options=options,

@@ -13,6 +13,8 @@ and the closed forms are a few lines.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 from scipy.spatial.transform import Rotation
 
@@ -40,7 +42,8 @@ def _coefficients(phi: np.ndarray) -> tuple[np.ndarray, ...]:
     t2 = t * t
     t4 = t2 * t2
 
-    def closed(below: float, series: np.ndarray, form) -> np.ndarray:
+    def closed(below: float, series: np.ndarray,
+               form: Callable[[np.ndarray], np.ndarray]) -> np.ndarray:
         small = t < below
         with np.errstate(invalid="ignore", divide="ignore"):
             return np.where(small, series, form(np.where(small, 1.0, t)))

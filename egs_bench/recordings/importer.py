@@ -21,10 +21,10 @@ ATE only. ``meta.yaml`` records ``source: real``, the sensors, ``events_on_frame
 from __future__ import annotations
 
 import contextlib
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -40,6 +40,10 @@ from egs_bench.recordings.camera import CameraModel
 from egs_bench.recordings.depth import reproject_depth, warp_to_depth_camera
 from egs_bench.recordings.presets import get_preset
 from egs_bench.recordings.streams import DepthStream, EventSource, FrameStream, PoseTrack
+
+if TYPE_CHECKING:
+    from egs_bench.recordings.aedat4 import Aedat4File
+    from egs_bench.recordings.rosbag import BagFile
 
 #: depth PNG units per metre in the written sequence (millimetres: 65 m range)
 OUT_DEPTH_SCALE = 1000.0
@@ -166,7 +170,7 @@ class _Inputs:
     gt: PoseTrack
 
 
-def _bag(path: Path, cache: dict):  # -> BagFile
+def _bag(path: Path, cache: dict[Path, Any]) -> BagFile:
     from egs_bench.recordings.rosbag import BagFile
 
     if path not in cache:
@@ -174,7 +178,7 @@ def _bag(path: Path, cache: dict):  # -> BagFile
     return cache[path]
 
 
-def _aedat(path: Path, cache: dict):  # -> Aedat4File
+def _aedat(path: Path, cache: dict[Path, Any]) -> Aedat4File:
     from egs_bench.recordings.aedat4 import Aedat4File
 
     if path not in cache:
@@ -441,7 +445,8 @@ def _sensor_names(spec: RecordingSpec, inp: _Inputs) -> dict[str, str]:
             for key, (named, label) in from_data.items()}
 
 
-def _lockstep(stream_load, wanted: np.ndarray) -> Iterator[np.ndarray]:
+def _lockstep(stream_load: Callable[[list[int]], Iterator[tuple[int, np.ndarray]]],
+              wanted: np.ndarray) -> Iterator[np.ndarray]:
     """Yield the item for each of ``wanted`` (non-decreasing indices) from one ordered pass."""
     unique = sorted(set(int(i) for i in wanted))
     gen = stream_load(unique)

@@ -18,7 +18,7 @@ Message definitions are read from the bag (no type registration needed for ROS1)
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -149,7 +149,8 @@ class BagFile:
         self._encodings[topic] = encodings
         return np.asarray(stamps, np.int64), np.asarray(bag_t, np.int64), size
 
-    def _image_loader(self, topic: str, convert):
+    def _image_loader(self, topic: str, convert: Callable[[Any], np.ndarray]
+                      ) -> tuple[str, Callable[[list[int]], Iterator[tuple[int, np.ndarray]]]]:
         label = f"{self.path}:{topic}"
 
         def load(indices: list[int]) -> Iterator[tuple[int, np.ndarray]]:

@@ -263,6 +263,21 @@ class FrozenGaussians:
                          viewmats, Ks, width, height, **kwargs)  # type: ignore[arg-type]
 
 
+def frame_map(gmap: GaussianMap, width: int, height: int) -> tuple[np.ndarray, Intrinsics]:
+    """A camera-to-world pose [4,4] and intrinsics that show the whole map: axes aligned with the
+    world, placed behind the map's bounding box on -z, 60 degree horizontal field of view."""
+    pts = gmap.means.detach().cpu().double().numpy()
+    if pts.shape[0] == 0:
+        lo = hi = np.zeros(3)
+    else:
+        lo, hi = np.percentile(pts, 1, axis=0), np.percentile(pts, 99, axis=0)
+    centre, half = (lo + hi) / 2, max(float(np.max(hi - lo)) / 2, 1e-3)
+    f = 0.5 * width / np.tan(np.radians(30))
+    pose = np.eye(4)
+    pose[:3, 3] = [centre[0], centre[1], lo[2] - 1.2 * half / np.tan(np.radians(30))]
+    return pose, Intrinsics(f, f, width / 2, height / 2, width, height)
+
+
 def _mean_sq_knn(points: np.ndarray, k: int = 3) -> np.ndarray:
     """Mean squared distance [M] from each point [M,3] to its k nearest other points (fewer
     if the cloud is smaller; 0 for a single point)."""

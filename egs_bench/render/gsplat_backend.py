@@ -19,6 +19,8 @@ Not run on a GPU yet (no GPU was available when this was written); see docs/note
 
 from __future__ import annotations
 
+from types import ModuleType
+
 import torch
 
 from egs_bench.errors import ConfigError
@@ -26,7 +28,7 @@ from egs_bench.render import constants as RC
 from egs_bench.render.work import active, book
 
 
-def _import_gsplat():  # -> module
+def _import_gsplat() -> ModuleType:
     try:
         import gsplat
     except ImportError as exc:

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from egs_bench import __version__
-from egs_bench.eval.grouping import differing_keys
+from egs_bench.eval.grouping import RowKey, differing_keys
 from egs_bench.eval.leaderboard import AVERAGE, Leaderboard, rank_cells, to_frame
 from egs_bench.eval.results import EVALUATED, METRICS
 from egs_bench.eval.tables import common_n, header
@@ -91,7 +91,7 @@ def _axis_values(r: RunRecord, labels: Labels) -> dict[str, str]:
             "settings": labels.get((res.method or "", res.settings_key), "")}
 
 
-def _row_settings(board: Leaderboard, row) -> dict[str, Any]:
+def _row_settings(board: Leaderboard, row: RowKey) -> dict[str, Any]:
     for (key, _), cell in board.cells.items():
         if key == row and cell.runs:
             return cell.runs[0].settings

@@ -270,7 +270,7 @@ def render_map_view(src: MapSource, *, frame: int | None = None, pose: np.ndarra
         ConfigError: inconsistent options.
     """
     from egs_bench.color import linear_to_srgb8
-    from egs_bench.render.demo import frame_map
+    from egs_bench.render.gaussian_map import frame_map
 
     app = src.appearance
     if frame is not None and pose is not None:

@@ -137,7 +137,7 @@ def test_no_events_returns_the_frame_unchanged() -> None:
 
 
 @pytest.fixture(scope="module")
-def blurred_plane(tmp_path_factory) -> Path:
+def blurred_plane(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """2 frames, 96x64, of the plane scene at 4 m/s: a 15 ms exposure smears it by ~40 px;
     events with c = 0.25 (generation ~1 s)."""
     return make_plane_sequence(tmp_path_factory.mktemp("edi") / "plane", frames=2, width=96,
@@ -213,7 +213,7 @@ def test_edi_sequence_view(blurred_plane: Path, tmp_path: Path) -> None:
 
 
 @pytest.fixture(scope="module")
-def tiny_room(tmp_path_factory) -> Path:
+def tiny_room(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """6 frames, 64x48, of the synthetic office (a 3-D camera path, which ATE alignment needs;
     generation ~10 s)."""
     from egs_bench.datasets.synthetic import make_synthetic

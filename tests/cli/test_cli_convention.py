@@ -5,6 +5,7 @@ working with a deprecation line."""
 from __future__ import annotations
 
 import re
+from pathlib import Path
 
 import pytest
 import typer
@@ -23,7 +24,7 @@ def _commands():
                   for name, cmd in root.commands.items() if not cmd.hidden]
 
 
-def test_every_output_is_o_out_and_every_progress_switch_is_quiet():
+def test_every_output_is_o_out_and_every_progress_switch_is_quiet() -> None:
     _, commands = _commands()
     for name, cmd, _ in commands:
         for param in cmd.params:
@@ -39,7 +40,8 @@ def test_every_output_is_o_out_and_every_progress_switch_is_quiet():
 
 @pytest.mark.parametrize("command", ["report", "export", "run", "figure", "sweep", "ate",
                                      "leaderboard", "make-synthetic", "import-run"])
-def test_help_shows_click_style_value_names(command, capsys):
+def test_help_shows_click_style_value_names(command: str, capsys: pytest.CaptureFixture[str]
+                                            ) -> None:
     assert main([command, "--help"]) == 0
     text = capsys.readouterr().out
     # typer's <str>, <path>, <int range>, <list[Path]>, <a|b>
@@ -51,7 +53,8 @@ def test_help_shows_click_style_value_names(command, capsys):
         assert old not in text
 
 
-def test_the_top_level_help_lists_every_command_under_a_panel(capsys):
+def test_the_top_level_help_lists_every_command_under_a_panel(capsys: pytest.CaptureFixture[str]
+                                                              ) -> None:
     _, commands = _commands()
     listed = {name for names in PANELS.values() for name in names}
     assert {name for name, _, _ in commands} == listed
@@ -63,7 +66,8 @@ def test_the_top_level_help_lists_every_command_under_a_panel(capsys):
     assert "Other commands" not in text
 
 
-def test_old_spellings_work_with_a_deprecation_line(capsys, tiny_sequence, tmp_path):
+def test_old_spellings_work_with_a_deprecation_line(capsys: pytest.CaptureFixture[str],
+                                                    tiny_sequence: Path, tmp_path: Path) -> None:
     assert main(["export", str(tiny_sequence), str(tmp_path / "e"), "-f", "tum-rgbd",
                  "--no-progress"]) == 0
     err = capsys.readouterr().err
@@ -76,7 +80,7 @@ def test_old_spellings_work_with_a_deprecation_line(capsys, tiny_sequence, tmp_p
     assert code == EXIT_USAGE and "--out" in capsys.readouterr().err
 
 
-def test_output_is_an_alias_of_out(capsys, tmp_path):
+def test_output_is_an_alias_of_out(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     runs = tmp_path / "runs"
     runs.mkdir()
     main(["leaderboard", str(runs), "--output", str(tmp_path / "board.md")])

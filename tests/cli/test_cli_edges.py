@@ -77,14 +77,15 @@ WITHOUT_PATHS = {"warm-up"}  # tests/test_warmup.py runs it
 USAGE_ERROR_CASES = {"list", "render-demo"}
 
 
-def test_every_command_has_a_bracket_case(tmp_path) -> None:
+def test_every_command_has_a_bracket_case(tmp_path: Path) -> None:
     """A new command must be added to the markup cases below."""
     assert set(_bad_path_cases(tmp_path)) | LISTINGS | WITHOUT_PATHS == _commands()
 
 
 @pytest.mark.parametrize("command", sorted(_bad_path_cases(Path("/nonexistent"), make=False)))
-def test_bracketed_paths_are_named_literally_in_one_line(command, tmp_path, capsys,
-                                                          monkeypatch) -> None:
+def test_bracketed_paths_are_named_literally_in_one_line(command, tmp_path: Path,
+                                                         capsys: pytest.CaptureFixture[str],
+                                                         monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.chdir(tmp_path)
     argv, named = _bad_path_cases(tmp_path)[command]
     code, _, err = run_cli(capsys, *argv)
@@ -92,12 +93,13 @@ def test_bracketed_paths_are_named_literally_in_one_line(command, tmp_path, caps
 
 
 @pytest.mark.parametrize("command", sorted(LISTINGS))
-def test_listings_print(command, capsys) -> None:
+def test_listings_print(command, capsys: pytest.CaptureFixture[str]) -> None:
     code, out, err = run_cli(capsys, command)
     assert code == 0 and out and not err
 
 
-def test_bracketed_paths_in_successful_commands(tiny_sequence, tmp_path, capsys) -> None:
+def test_bracketed_paths_in_successful_commands(tiny_sequence: Path, tmp_path: Path,
+                                                capsys: pytest.CaptureFixture[str]) -> None:
     seq = Path(shutil.copytree(tiny_sequence, tmp_path / f"seq{NASTY}"))
     code, out, err = run_cli(capsys, "info", seq, "--no-check")
     assert code == 0 and "sequence plane" in out, err
@@ -114,11 +116,12 @@ def test_bracketed_paths_in_successful_commands(tiny_sequence, tmp_path, capsys)
     assert f"reference {gt}" in out.replace("\n", "")
 
 
-def test_library_messages_keep_their_brackets(monkeypatch, capsys) -> None:
+def test_library_messages_keep_their_brackets(monkeypatch: pytest.MonkeyPatch,
+                                              capsys: pytest.CaptureFixture[str]) -> None:
     """Text the library wrote with brackets (an install hint) reaches the user whole."""
     from egs_bench.errors import ConfigError
 
-    def refuse(*_args, **_kwargs):
+    def refuse(*_args, **_kwargs) -> None:
         raise ConfigError("backend 'gsplat' needs gsplat 1.5.3: pip install 'egs-bench[cuda]'")
 
     monkeypatch.setattr("egs_bench.datasets.registry.load_sequence", refuse)
@@ -152,8 +155,9 @@ def test_library_messages_keep_their_brackets(monkeypatch, capsys) -> None:
     (["run", "-m", "monogs", "-s", "x", "--nosuch"], "--nosuch"),
     (["make-calib", "-o", "c.yaml", "--preset", "foo"], "--preset 'foo'"),
 ])
-def test_bad_option_values_are_one_line_naming_the_option(argv, option, tmp_path, capsys,
-                                                          monkeypatch) -> None:
+def test_bad_option_values_are_one_line_naming_the_option(argv, option: str, tmp_path: Path,
+                                                          capsys: pytest.CaptureFixture[str],
+                                                          monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.chdir(tmp_path)
     code, _, err = run_cli(capsys, *argv)
     assert_cli_error(code, err, 2, option)
@@ -161,7 +165,8 @@ def test_bad_option_values_are_one_line_naming_the_option(argv, option, tmp_path
 
 
 @pytest.mark.parametrize("flag", ["--kalibr", "--ros-yaml"])
-def test_binary_calibration_files_are_named(flag, tmp_path, capsys) -> None:
+def test_binary_calibration_files_are_named(flag: str, tmp_path: Path,
+                                            capsys: pytest.CaptureFixture[str]) -> None:
     binary = tmp_path / "cam.yaml"
     binary.write_bytes(bytes(range(256)) * 4)
     code, _, err = run_cli(capsys, "make-calib", "-o", tmp_path / "c.yaml", flag, binary)
@@ -169,7 +174,8 @@ def test_binary_calibration_files_are_named(flag, tmp_path, capsys) -> None:
 
 
 def test_a_file_that_is_not_pytorch_weights_is_named_without_unsafe_advice(
-        tmp_path, monkeypatch, capsys) -> None:
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
     from egs_bench.images import write_ldr_image
 
     img = tmp_path / "a.png"
@@ -182,7 +188,9 @@ def test_a_file_that_is_not_pytorch_weights_is_named_without_unsafe_advice(
 
 
 # ------------------------------------------------------------------ make-calib
-def test_make_calib_overwrite_replaces_only_with_the_flag(tmp_path, capsys) -> None:
+def test_make_calib_overwrite_replaces_only_with_the_flag(tmp_path: Path,
+                                                          capsys: pytest.CaptureFixture[str]
+                                                          ) -> None:
     out = tmp_path / "calib.yaml"
     out.write_text("mine: 1\n")
     code, _, err = run_cli(capsys, "make-calib", "-o", out)
@@ -195,14 +203,14 @@ def test_make_calib_overwrite_replaces_only_with_the_flag(tmp_path, capsys) -> N
 
 
 # ------------------------------------------------------------------ consistency
-def test_help_lists_choices_and_shows_no_bool_type(capsys) -> None:
+def test_help_lists_choices_and_shows_no_bool_type(capsys: pytest.CaptureFixture[str]) -> None:
     code, out, _ = run_cli(capsys, "ate", "--help")
     assert code == 0 and "[se3|sim3|none]" in out and "<bool>" not in out, out
     code, out, _ = run_cli(capsys, "render-map", "--help")
     assert "[default: the run's camera, else 640]" in " ".join(out.split()), out
 
 
-def test_topic_options_have_help(capsys) -> None:
+def test_topic_options_have_help(capsys: pytest.CaptureFixture[str]) -> None:
     from egs_bench.cli import _register_commands
     from egs_bench.cli.app import app
 
@@ -243,8 +251,9 @@ def test_cli_choices_match_the_library() -> None:
         assert set(get_args(literal)) == set(library), literal
 
 
-def test_an_existing_export_is_a_usage_error_like_every_output(tiny_sequence, tmp_path,
-                                                               capsys) -> None:
+def test_an_existing_export_is_a_usage_error_like_every_output(tiny_sequence: Path, tmp_path: Path,
+                                                               capsys: pytest.CaptureFixture[str]
+                                                               ) -> None:
     out = tmp_path / "exp"
     assert main(["export", str(tiny_sequence), "-o", str(out), "-f", "tum-rgbd", "--quiet"]) == 0
     capsys.readouterr()
@@ -252,7 +261,7 @@ def test_an_existing_export_is_a_usage_error_like_every_output(tiny_sequence, tm
     assert_cli_error(code, err, 2, f"{out}: already exists", "--overwrite")
 
 
-def test_info_does_not_invent_event_thresholds(tiny_sequence, tmp_path) -> None:
+def test_info_does_not_invent_event_thresholds(tiny_sequence: Path, tmp_path: Path) -> None:
     from egs_bench.datasets.inspect import sequence_summary
     from egs_bench.datasets.sequence import Sequence
 
@@ -281,7 +290,7 @@ def test_rendering_table_latex_uses_math_arrows() -> None:
     assert _latex_stub("LPIPS ↓") == r"LPIPS $\downarrow$"
 
 
-def test_paper_tables_into_an_existing_file_is_a_usage_error(tmp_path) -> None:
+def test_paper_tables_into_an_existing_file_is_a_usage_error(tmp_path: Path) -> None:
     from egs_bench.errors import OutputError
     from egs_bench.experiments.paper_tables import write_tables
 

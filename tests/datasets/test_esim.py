@@ -79,7 +79,7 @@ def _as_tuples(events: Events, width: int) -> list[tuple[int, int, int, int, int
 # --- luma ------------------------------------------------------------------------------------
 
 
-def test_linear_luma_uses_bt601_weights_and_log_adds_eps():
+def test_linear_luma_uses_bt601_weights_and_log_adds_eps() -> None:
     rgb = np.zeros((2, 3, 3))
     rgb[0, 0] = [1, 0, 0]
     rgb[0, 1] = [0, 1, 0]
@@ -99,7 +99,7 @@ def test_linear_luma_uses_bt601_weights_and_log_adds_eps():
 
 @pytest.mark.parametrize("n", [1, 3, 7])
 @pytest.mark.parametrize("direction", [1, -1])
-def test_ramp_of_n_thresholds_gives_n_events_at_predicted_times(n, direction):
+def test_ramp_of_n_thresholds_gives_n_events_at_predicted_times(n: int, direction: int) -> None:
     theta = 0.23
     l0 = np.log(0.37)  # not a round number: the n-th crossing lies exactly on the sample
     l1 = l0 + direction * n * theta
@@ -113,7 +113,7 @@ def test_ramp_of_n_thresholds_gives_n_events_at_predicted_times(n, direction):
     assert ev.t[-1] == t1
 
 
-def test_ramp_across_samples_carries_remainder():
+def test_ramp_across_samples_carries_remainder() -> None:
     theta = 0.2
     rate = 0.37e-3  # log units per microsecond
     times = np.arange(0, 10_001, 1_000) + 50  # 11 samples, 3.7 log units in total
@@ -130,7 +130,7 @@ def test_ramp_across_samples_carries_remainder():
     assert np.all(np.diff(log_values) < theta * 2)
 
 
-def test_constant_images_give_no_events():
+def test_constant_images_give_no_events() -> None:
     rng = np.random.default_rng(1)
     image = rng.normal(size=(8, 9))
     config = EventSimConfig(pos_threshold=0.05, neg_threshold=0.05, sigma=0.02)
@@ -138,7 +138,7 @@ def test_constant_images_give_no_events():
     assert len(ev) == 0
 
 
-def test_polarity_follows_sign_and_counts_are_floor_of_change():
+def test_polarity_follows_sign_and_counts_are_floor_of_change() -> None:
     rng = np.random.default_rng(2)
     l0 = rng.normal(size=(10, 12))
     delta = rng.uniform(-1.3, 1.3, size=(10, 12))
@@ -150,7 +150,7 @@ def test_polarity_follows_sign_and_counts_are_floor_of_change():
     assert np.all(ev.p == np.sign(delta[ev.y, ev.x]))
 
 
-def test_separate_positive_and_negative_thresholds():
+def test_separate_positive_and_negative_thresholds() -> None:
     pos, neg = 0.2, 0.5
     base = np.log(0.3)
     frames = [np.full((1, 1), base + v) for v in (0.0, 1.0, 0.0)]
@@ -162,7 +162,7 @@ def test_separate_positive_and_negative_thresholds():
     np.testing.assert_array_equal(ev.t[ev.t > 1000], [1500, 2000])
 
 
-def test_polarity_sum_tracks_log_change_within_one_threshold():
+def test_polarity_sum_tracks_log_change_within_one_threshold() -> None:
     n, h, w = 40, 24, 32
     video = _smooth_video(n, h, w, seed=3)
     for config in (EventSimConfig(pos_threshold=0.1, neg_threshold=0.1),
@@ -184,7 +184,7 @@ def test_polarity_sum_tracks_log_change_within_one_threshold():
         assert n_events > 10 * h * w  # the video is far from trivial
 
 
-def test_matches_independent_reference_loop_with_mismatch_and_refractory():
+def test_matches_independent_reference_loop_with_mismatch_and_refractory() -> None:
     n, h, w = 12, 6, 7
     video = _smooth_video(n, h, w, seed=5, amplitude=2.0)
     rng = np.random.default_rng(6)
@@ -201,7 +201,7 @@ def test_matches_independent_reference_loop_with_mismatch_and_refractory():
     assert _as_tuples(ev, w) == expected
 
 
-def test_inserting_a_sample_on_the_linear_path_changes_nothing():
+def test_inserting_a_sample_on_the_linear_path_changes_nothing() -> None:
     h, w = 16, 16
     video = _smooth_video(6, h, w, seed=8, amplitude=2.0)
     times = [0, 1000, 2000, 3000, 4000, 5000]
@@ -226,7 +226,7 @@ def test_inserting_a_sample_on_the_linear_path_changes_nothing():
 # --- options ---------------------------------------------------------------------------------
 
 
-def test_threshold_mismatch_statistics_and_seed_determinism():
+def test_threshold_mismatch_statistics_and_seed_determinism() -> None:
     config = EventSimConfig(pos_threshold=0.25, neg_threshold=0.4, sigma=0.03, seed=11)
     h, w = 256, 256
     pos, neg = EventSimulator(config, h, w).thresholds
@@ -246,7 +246,7 @@ def test_threshold_mismatch_statistics_and_seed_determinism():
     assert np.all(pos0 == 0.3) and np.all(neg0 == 0.2)
 
 
-def test_threshold_mismatch_is_clamped():
+def test_threshold_mismatch_is_clamped() -> None:
     config = EventSimConfig(pos_threshold=0.05, neg_threshold=0.05, sigma=0.05, seed=1)
     pos, _ = EventSimulator(config, 100, 100).thresholds
     assert pos.min() == pytest.approx(0.01)
@@ -254,7 +254,7 @@ def test_threshold_mismatch_is_clamped():
     assert abs(clamped - stats.norm.cdf((0.01 - 0.05) / 0.05)) < 0.02
 
 
-def test_refractory_drops_events_and_reference_still_moves():
+def test_refractory_drops_events_and_reference_still_moves() -> None:
     # A ramp crossing one threshold every 100 µs: crossings at 100, 200, ..., 1000.
     theta = 0.1
     frames = [np.full((1, 1), 0.0), np.full((1, 1), 1.0), np.full((1, 1), 1.0)]
@@ -273,7 +273,7 @@ def test_refractory_drops_events_and_reference_still_moves():
     np.testing.assert_array_equal(ev2.t, [100, 400, 700, 1000, 6000, 7000])
 
 
-def test_noise_events_have_the_configured_rate():
+def test_noise_events_have_the_configured_rate() -> None:
     h, w, rate = 64, 64, 10.0
     image = np.zeros((h, w))
     times = list(range(0, 1_000_001, 50_000))  # 1 s in 20 intervals
@@ -297,7 +297,7 @@ def test_noise_events_have_the_configured_rate():
     assert not np.array_equal(ev.t, other.t)
 
 
-def test_noise_is_added_on_top_of_unchanged_signal_events():
+def test_noise_is_added_on_top_of_unchanged_signal_events() -> None:
     video = _smooth_video(10, 12, 12, seed=9)
     times = [1000 * k for k in range(10)]
     clean = _run(EventSimConfig(pos_threshold=0.1, neg_threshold=0.1), list(video), times)
@@ -312,7 +312,7 @@ def test_noise_is_added_on_top_of_unchanged_signal_events():
 # --- streaming, order, dtypes, errors ---------------------------------------------------------
 
 
-def test_streaming_in_chunks_equals_one_pass_and_reset_reproduces():
+def test_streaming_in_chunks_equals_one_pass_and_reset_reproduces() -> None:
     n, h, w = 30, 20, 24
     video = _smooth_video(n, h, w, seed=10)
     times = (np.arange(n) * 700 + 123).tolist()
@@ -334,7 +334,7 @@ def test_streaming_in_chunks_equals_one_pass_and_reset_reproduces():
     assert len(one_pass) > 1000
 
 
-def test_output_sorted_by_time_then_pixel_with_canonical_dtypes():
+def test_output_sorted_by_time_then_pixel_with_canonical_dtypes() -> None:
     n, h, w = 8, 16, 20
     video = _smooth_video(n, h, w, seed=12, amplitude=3.0)
     times = [0, 3, 10, 500, 501, 900, 2000, 70_000]  # includes 1 µs intervals
@@ -354,7 +354,7 @@ def test_output_sorted_by_time_then_pixel_with_canonical_dtypes():
         assert len(ev) > 0
 
 
-def test_invalid_input_is_rejected():
+def test_invalid_input_is_rejected() -> None:
     for kwargs in ({"pos_threshold": 0.0}, {"neg_threshold": -0.1}, {"sigma": -1.0},
                    {"refractory_us": -5}, {"noise_rate_hz": -1.0}, {"eps": 0.0},
                    {"pos_threshold": float("nan")}):
@@ -380,7 +380,7 @@ def test_invalid_input_is_rejected():
         simulate([np.zeros((4, 5))] * 3, [0, 1], EventSimConfig(), 4, 5)
 
 
-def test_simulator_does_not_alias_caller_arrays():
+def test_simulator_does_not_alias_caller_arrays() -> None:
     sim = EventSimulator(EventSimConfig(), 2, 2)
     image = np.zeros((2, 2))
     sim.reset(image, 0)
@@ -389,7 +389,7 @@ def test_simulator_does_not_alias_caller_arrays():
 
 
 @pytest.mark.parametrize("dt", [1000, 10**6])  # counting sort / comparison sort paths
-def test_event_ordering_merges_crossings_and_noise_by_time_then_pixel(dt):
+def test_event_ordering_merges_crossings_and_noise_by_time_then_pixel(dt) -> None:
     rng = np.random.default_rng(13)
     h, w = 5, 6
 

@@ -3,6 +3,8 @@ into a canonical sequence by the library and by the CLI; the latent source's con
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -27,7 +29,8 @@ N_FRAMES = 5
 
 
 @pytest.fixture(scope="module")
-def replica_dir(tmp_path_factory):
+def replica_dir(tmp_path_factory: pytest.TempPathFactory
+                ) -> tuple[Path, dict[str, tuple[list[np.ndarray], list[np.ndarray], np.ndarray]]]:
     """``root/sceneA`` and ``root/sceneB`` in NICE-SLAM layout (lossless PNG colour)."""
     root = tmp_path_factory.mktemp("replica")
     data = {}
@@ -47,7 +50,9 @@ def replica_dir(tmp_path_factory):
     return root, data
 
 
-def test_source_contract(replica_dir):
+def test_source_contract(
+        replica_dir: tuple[Path, dict[str, tuple[list[np.ndarray], list[np.ndarray], np.ndarray]]]
+) -> None:
     root, data = replica_dir
     rgbs, depths, poses = data["sceneA"]
     geo = ResizeCrop(width=112, height=64, resize=None)
@@ -73,14 +78,17 @@ def test_source_contract(replica_dir):
         ReplicaSource(read_replica(root / "sceneA"), fps=20.0, stride=10)
 
 
-def test_exposure_windows_skip_frames_without_history():
+def test_exposure_windows_skip_frames_without_history() -> None:
     ids, t0, t1 = exposure_windows(np.array([0, 33_333, 66_667]), 20_000)
     np.testing.assert_array_equal(ids, [1, 2])
     np.testing.assert_array_equal(t0, [13_333, 46_667])
     np.testing.assert_array_equal(t1, [33_333, 66_667])
 
 
-def test_make_eventreplica_end_to_end(replica_dir, tmp_path):
+def test_make_eventreplica_end_to_end(
+        replica_dir: tuple[Path, dict[str, tuple[list[np.ndarray], list[np.ndarray], np.ndarray]]],
+        tmp_path: Path
+) -> None:
     root, data = replica_dir
     rgbs, depths, poses = data["sceneA"]
     out = make_eventreplica(root / "sceneA", tmp_path / "seq", fps=30.0, exposure_ms=25.0,
@@ -107,7 +115,10 @@ def test_make_eventreplica_end_to_end(replica_dir, tmp_path):
     assert set(np.unique(events.p)) == {-1, 1}
 
 
-def test_flow_interpolator_end_to_end(replica_dir, tmp_path):
+def test_flow_interpolator_end_to_end(
+        replica_dir: tuple[Path, dict[str, tuple[list[np.ndarray], list[np.ndarray], np.ndarray]]],
+        tmp_path: Path
+) -> None:
     root, _ = replica_dir
     out = make_eventreplica(root / "sceneB", tmp_path / "seq_flow", fps=30.0, exposure_ms=20.0,
                             width=112, height=64, resize=(116, 70), interpolator="flow",
@@ -121,7 +132,10 @@ def test_flow_interpolator_end_to_end(replica_dir, tmp_path):
     assert len(seq.events) > 0
 
 
-def test_cli_several_scenes(replica_dir, tmp_path):
+def test_cli_several_scenes(
+        replica_dir: tuple[Path, dict[str, tuple[list[np.ndarray], list[np.ndarray], np.ndarray]]],
+        tmp_path: Path
+) -> None:
     root, _ = replica_dir
     code = main(["make-eventreplica", "--replica-root", str(root), "--scene", "sceneA",
                  "--scene", "sceneB", "--out", str(tmp_path / "out"), "--width", "112",
@@ -142,7 +156,10 @@ def test_cli_several_scenes(replica_dir, tmp_path):
         (["--width", "200"], "larger than"),
     ],
 )
-def test_cli_bad_options(replica_dir, tmp_path, capsys, args, message):
+def test_cli_bad_options(
+        replica_dir: tuple[Path, dict[str, tuple[list[np.ndarray], list[np.ndarray], np.ndarray]]],
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], args, message: str
+) -> None:
     root, _ = replica_dir
     code = main(["make-eventreplica", "--input", str(root / "sceneA"), "--out",
                  str(tmp_path / "bad"), "--resize", "none", "--width", "112", "--height", "64",
@@ -151,7 +168,7 @@ def test_cli_bad_options(replica_dir, tmp_path, capsys, args, message):
     assert not (tmp_path / "bad").exists()
 
 
-def test_cli_bad_input_names_the_file(tmp_path, capsys):
+def test_cli_bad_input_names_the_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     code = main(["make-eventreplica", "--input", str(tmp_path / "missing"), "--out",
                  str(tmp_path / "o")])
     # a data error (exit 2 is for usage errors)

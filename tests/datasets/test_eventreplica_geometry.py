@@ -8,6 +8,8 @@ back through the reader and the EventReplica source (sRGB decode, resize to 459x
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -55,7 +57,7 @@ def _centroid(img: np.ndarray, u: float, v: float, radius: int = 7) -> tuple[flo
             float((patch * (rows + max(y0, 0) + 0.5)).sum() / w))
 
 
-def test_points_project_onto_their_dots_after_resize_and_crop(tmp_path):
+def test_points_project_onto_their_dots_after_resize_and_crop(tmp_path: Path) -> None:
     points = _points()
     frame = _dot_frame(points)
     depth = np.ones((REP_H, REP_W), np.float32)
@@ -85,7 +87,7 @@ def test_points_project_onto_their_dots_after_resize_and_crop(tmp_path):
     assert checked >= 5
 
 
-def test_output_intrinsics_values():
+def test_output_intrinsics_values() -> None:
     src = Intrinsics(600.0, 600.0, 600.0, 340.0, 1200, 680)
     out = ResizeCrop().intrinsics(src)
     sx, sy = 459 / 1200, 260 / 680
@@ -94,7 +96,7 @@ def test_output_intrinsics_values():
     assert out.cx == pytest.approx(600 * sx - 5) and out.cy == pytest.approx(340 * sy - 2)
 
 
-def test_depth_resampled_at_output_pixel_centres():
+def test_depth_resampled_at_output_pixel_centres() -> None:
     """Depth = nearest source pixel to each output pixel centre: a ramp tells which one."""
     src = Intrinsics(600.0, 600.0, 600.0, 340.0, 1200, 680)
     rows, cols = np.mgrid[0:680, 0:1200]
@@ -111,7 +113,7 @@ def test_depth_resampled_at_output_pixel_centres():
     assert set(np.unique(ResizeCrop().depth(step, src))) <= {1.0, 3.0}
 
 
-def test_crop_only_keeps_pixels(tmp_path):
+def test_crop_only_keeps_pixels(tmp_path: Path) -> None:
     src = Intrinsics(100.0, 100.0, 60.0, 36.0, 120, 72)
     rng = np.random.default_rng(0)
     img = rng.random((72, 120, 3)).astype(np.float32)
@@ -120,7 +122,7 @@ def test_crop_only_keeps_pixels(tmp_path):
     assert geo.intrinsics(src) == Intrinsics(100.0, 100.0, 56.0, 32.0, 112, 64)
 
 
-def test_bad_geometry_config():
+def test_bad_geometry_config() -> None:
     with pytest.raises(ConfigError, match="smaller than the crop"):
         ResizeCrop(width=448, height=256, resize=(400, 260))
     with pytest.raises(ConfigError, match="larger than image"):
@@ -128,7 +130,7 @@ def test_bad_geometry_config():
             Intrinsics(100.0, 100.0, 50.0, 25.0, 100, 50))
 
 
-def test_auto_resize_keeps_the_aspect_ratio_except_the_papers_replica_size():
+def test_auto_resize_keeps_the_aspect_ratio_except_the_papers_replica_size() -> None:
     from egs_bench.datasets.eventreplica.resize import auto_resize
 
     assert auto_resize(1200, 680, 448, 256) == (459, 260)  # the paper's EventReplica setting

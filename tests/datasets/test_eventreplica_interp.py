@@ -26,7 +26,8 @@ def _render(pose):
     return scene.render(pose, INTR.fx, INTR.fy, INTR.cx, INTR.cy, INTR.width, INTR.height)
 
 
-def _make_pair(translation):
+def _make_pair(translation: list[float]
+               ) -> tuple[KeyFrame, KeyFrame, np.ndarray, np.ndarray]:
     pose_a = scene.look_pose([0.0, 0.0, 0.0])
     pose_b = scene.look_pose(translation, yaw_deg=3.0, pitch_deg=-1.5, roll_deg=1.0)
     a = KeyFrame(*_render(pose_a), pose_a)
@@ -37,13 +38,13 @@ def _make_pair(translation):
 
 
 @pytest.fixture(scope="module")
-def pair():
+def pair() -> tuple[KeyFrame, KeyFrame, np.ndarray, np.ndarray]:
     """Moderate motion: about 10 px between the key frames."""
     return _make_pair([0.10, -0.04, 0.06])
 
 
 @pytest.fixture(scope="module")
-def wide_pair():
+def wide_pair() -> tuple[KeyFrame, KeyFrame, np.ndarray, np.ndarray]:
     """Larger translation: about 7 px of parallax between the box and the wall at mid-time."""
     return _make_pair([0.25, -0.05, 0.08])
 
@@ -56,7 +57,7 @@ def _psnr(x: np.ndarray, y: np.ndarray, mask: np.ndarray | None = None) -> float
 
 
 @pytest.mark.parametrize("make", [DepthWarpInterpolator, FlowInterpolator], ids=["depth", "flow"])
-def test_exact_at_key_frames(pair, make):
+def test_exact_at_key_frames(pair: tuple[KeyFrame, KeyFrame, np.ndarray, np.ndarray], make) -> None:
     a, b, _, _ = pair
     interp = make().prepare(a, b, INTR)
     rgb0, d0 = interp(0.0)
@@ -67,7 +68,9 @@ def test_exact_at_key_frames(pair, make):
     np.testing.assert_array_equal(d1, b.depth)
 
 
-def test_depth_warp_is_continuous_at_the_ends(pair):
+def test_depth_warp_is_continuous_at_the_ends(
+        pair: tuple[KeyFrame, KeyFrame, np.ndarray, np.ndarray]
+) -> None:
     """Just inside the interval the warp (not the key-frame shortcut) already matches."""
     a, b, _, _ = pair
     interp = DepthWarpInterpolator().prepare(a, b, INTR)
@@ -75,7 +78,9 @@ def test_depth_warp_is_continuous_at_the_ends(pair):
     assert _psnr(interp(1 - 1e-3)[0], b.rgb) > 40.0
 
 
-def test_depth_warp_middle_frame_beats_naive_blending(pair):
+def test_depth_warp_middle_frame_beats_naive_blending(
+        pair: tuple[KeyFrame, KeyFrame, np.ndarray, np.ndarray]
+) -> None:
     a, b, mid_rgb, mid_depth = pair
     naive = _psnr(0.5 * a.rgb + 0.5 * b.rgb, mid_rgb)
     rgb, depth = DepthWarpInterpolator().prepare(a, b, INTR)(0.5)
@@ -88,7 +93,8 @@ def test_depth_warp_middle_frame_beats_naive_blending(pair):
     assert np.median(rel) < 1e-3 and (rel < 0.02).mean() > 0.97
 
 
-def test_z_buffer_resolves_occlusions(wide_pair):
+def test_z_buffer_resolves_occlusions(wide_pair: tuple[KeyFrame, KeyFrame, np.ndarray, np.ndarray]
+                                      ) -> None:
     """On the floating box the z-test matters: without it the wall behind bleeds through."""
     a, b, mid_rgb, mid_depth = wide_pair
     box = mid_depth < 3.0  # the box is nearer than every wall seen by this camera
@@ -99,7 +105,8 @@ def test_z_buffer_resolves_occlusions(wide_pair):
     assert _psnr(with_z, mid_rgb, box) > _psnr(without_z, mid_rgb, box) + 5.0
 
 
-def test_flow_fallback_beats_naive_blending(pair):
+def test_flow_fallback_beats_naive_blending(pair: tuple[KeyFrame, KeyFrame, np.ndarray, np.ndarray]
+                                            ) -> None:
     a, b, mid_rgb, mid_depth = pair
     naive = _psnr(0.5 * a.rgb + 0.5 * b.rgb, mid_rgb)
     rgb, depth = FlowInterpolator().prepare(a, b, INTR)(0.5)
@@ -110,7 +117,8 @@ def test_flow_fallback_beats_naive_blending(pair):
     assert np.median(np.abs(depth - mid_depth) / mid_depth) < 0.05
 
 
-def test_holes_without_depth_are_filled(pair):
+def test_holes_without_depth_are_filled(pair: tuple[KeyFrame, KeyFrame, np.ndarray, np.ndarray]
+                                        ) -> None:
     """Key frames with invalid depth (0) leave holes that are inpainted, not left black."""
     a, b, mid_rgb, _ = pair
     depth_a = a.depth.copy()
@@ -127,7 +135,7 @@ def test_holes_without_depth_are_filled(pair):
     assert abs(rgb[hole].mean() - mid_rgb[hole].mean()) < 0.5 * mid_rgb[hole].mean()
 
 
-def test_registry_and_errors():
+def test_registry_and_errors() -> None:
     assert make_interpolator("depth").name == "depth"
     assert make_interpolator("flow").name == "flow"
     with pytest.raises(ConfigError, match="unknown interpolator 'film'"):

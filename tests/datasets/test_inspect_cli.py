@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import pytest
 from PIL import Image
 
 from egs_bench.cli import main
@@ -31,7 +32,8 @@ def test_event_map_colours() -> None:
     assert tuple(img[0, 2]) == (0, 0, 255)
 
 
-def test_info_and_show_commands(tiny_sequence: Path, tmp_path: Path, capsys) -> None:
+def test_info_and_show_commands(tiny_sequence: Path, tmp_path: Path,
+                                capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["info", str(tiny_sequence)]) == 0
     assert "events" in capsys.readouterr().out
     out = tmp_path / "panel.png"
@@ -48,7 +50,7 @@ def test_info_and_show_commands(tiny_sequence: Path, tmp_path: Path, capsys) -> 
     assert out.read_bytes() != before  # frame 2's panel replaced frame 1's
 
 
-def test_info_bad_path_is_one_line(tmp_path: Path, capsys) -> None:
+def test_info_bad_path_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     code = main(["info", str(tmp_path / "missing")])  # a data error, not a usage error
     assert_cli_error(code, capsys.readouterr().err, 3,
                      f"{tmp_path / 'missing'}: no such sequence folder")

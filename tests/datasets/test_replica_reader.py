@@ -31,7 +31,7 @@ def _scene(tmp_path: Path, n: int = 3, intr: Intrinsics = SMALL, name: str = "sc
                                  image_format="png")
 
 
-def test_round_trip_exact(tmp_path):
+def test_round_trip_exact(tmp_path: Path) -> None:
     rng = np.random.default_rng(0)
     rgb = [rng.integers(0, 256, (48, 80, 3), dtype=np.uint8) for _ in range(3)]
     depth = [rng.uniform(0.5, 8.0, (48, 80)).astype(np.float32) for _ in range(3)]
@@ -47,7 +47,7 @@ def test_round_trip_exact(tmp_path):
         assert scene.depth(i).dtype == np.float32
 
 
-def test_cam_params_are_converted_to_our_pixel_convention(tmp_path):
+def test_cam_params_are_converted_to_our_pixel_convention(tmp_path: Path) -> None:
     path = _scene(tmp_path)
     cam = json.loads((path / "cam_params.json").read_text())["camera"]
     assert cam["cx"] == SMALL.cx - 0.5 and cam["cy"] == SMALL.cy - 0.5
@@ -58,7 +58,7 @@ def test_cam_params_are_converted_to_our_pixel_convention(tmp_path):
     assert (scene.intrinsics.cx, scene.intrinsics.cy) == (40.0, 24.0)
 
 
-def test_replica_defaults_without_cam_params(tmp_path):
+def test_replica_defaults_without_cam_params(tmp_path: Path) -> None:
     blank = [np.zeros((680, 1200, 3), np.uint8)] * 2
     export_replica_layout(blank, [np.ones((680, 1200))] * 2, _poses(2), tmp_path / "r",
                           image_format="png")
@@ -70,7 +70,7 @@ def test_replica_defaults_without_cam_params(tmp_path):
     assert scene.intrinsics.cx == scene.intrinsics.width / 2
 
 
-def test_jpeg_layout_as_nice_slam(tmp_path):
+def test_jpeg_layout_as_nice_slam(tmp_path: Path) -> None:
     rng = np.random.default_rng(1)
     smooth = cv2.GaussianBlur(rng.integers(0, 256, (48, 80, 3), dtype=np.uint8), (0, 0), 3)
     export_replica_layout([smooth] * 2, [np.ones((48, 80))] * 2, _poses(2), tmp_path / "j",
@@ -89,25 +89,25 @@ def _expect(path: Path, *words: str, **kwargs):
     return info.value
 
 
-def test_missing_scene_folder(tmp_path):
+def test_missing_scene_folder(tmp_path: Path) -> None:
     err = _expect(tmp_path / "nowhere")
     assert "nowhere" in str(err) and "does not exist" in str(err)
 
 
-def test_missing_results_folder(tmp_path):
+def test_missing_results_folder(tmp_path: Path) -> None:
     (tmp_path / "s").mkdir()
     err = _expect(tmp_path / "s")
     assert err.path == tmp_path / "s" / "results" and "results" in err.problem
 
 
-def test_missing_traj(tmp_path):
+def test_missing_traj(tmp_path: Path) -> None:
     path = _scene(tmp_path)
     (path / "traj.txt").unlink()
     err = _expect(path)
     assert err.path == path / "traj.txt" and "missing" in err.problem
 
 
-def test_no_frames(tmp_path):
+def test_no_frames(tmp_path: Path) -> None:
     path = _scene(tmp_path)
     for f in (path / "results").glob("frame*"):
         f.unlink()
@@ -115,14 +115,14 @@ def test_no_frames(tmp_path):
     assert err.path == path / "results" and "no colour frames" in err.problem
 
 
-def test_depth_count_mismatch(tmp_path):
+def test_depth_count_mismatch(tmp_path: Path) -> None:
     path = _scene(tmp_path)
     (path / "results" / "depth000002.png").unlink()
     err = _expect(path)
     assert "3 colour frames but 2 depth frames" in err.problem
 
 
-def test_pose_count_mismatch(tmp_path):
+def test_pose_count_mismatch(tmp_path: Path) -> None:
     path = _scene(tmp_path)
     lines = (path / "traj.txt").read_text().splitlines()
     (path / "traj.txt").write_text("\n".join(lines[:2]) + "\n")
@@ -130,7 +130,7 @@ def test_pose_count_mismatch(tmp_path):
     assert err.path == path / "traj.txt" and "2 poses but 3 frames" in err.problem
 
 
-def test_gap_in_numbering(tmp_path):
+def test_gap_in_numbering(tmp_path: Path) -> None:
     path = _scene(tmp_path)
     (path / "results" / "frame000001.png").rename(path / "results" / "frame000007.png")
     err = _expect(path)
@@ -148,7 +148,7 @@ def test_gap_in_numbering(tmp_path):
     ],
     ids=["short", "text", "nan", "last-row", "not-rotation"],
 )
-def test_bad_traj_line(tmp_path, mutate, expected):
+def test_bad_traj_line(tmp_path: Path, mutate, expected) -> None:
     path = _scene(tmp_path)
     lines = (path / "traj.txt").read_text().splitlines()
     lines[1] = " ".join(mutate(lines[1].split()))
@@ -157,7 +157,7 @@ def test_bad_traj_line(tmp_path, mutate, expected):
     assert err.path == path / "traj.txt" and expected in err.problem
 
 
-def test_wrong_image_size(tmp_path):
+def test_wrong_image_size(tmp_path: Path) -> None:
     path = _scene(tmp_path)
     cv2.imwrite(str(path / "results" / "frame000001.png"), np.zeros((40, 80, 3), np.uint8))
     err = _expect(path)
@@ -168,7 +168,7 @@ def test_wrong_image_size(tmp_path):
         scene.rgb(1)
 
 
-def test_depth_not_16_bit(tmp_path):
+def test_depth_not_16_bit(tmp_path: Path) -> None:
     path = _scene(tmp_path)
     cv2.imwrite(str(path / "results" / "depth000000.png"), np.zeros((48, 80), np.uint8))
     err = _expect(path)
@@ -178,7 +178,7 @@ def test_depth_not_16_bit(tmp_path):
         scene.depth(0)
 
 
-def test_corrupt_image(tmp_path):
+def test_corrupt_image(tmp_path: Path) -> None:
     path = _scene(tmp_path)
     (path / "results" / "frame000002.png").write_bytes(b"not an image")
     err = _expect(path)
@@ -199,14 +199,14 @@ def test_corrupt_image(tmp_path):
     ],
     ids=["json", "nan", "negative", "non-integer", "not-object"],
 )
-def test_bad_cam_params(tmp_path, content, expected):
+def test_bad_cam_params(tmp_path: Path, content: str, expected: str) -> None:
     path = _scene(tmp_path)
     (path / "cam_params.json").write_text(content)
     err = _expect(path)
     assert err.path == path / "cam_params.json" and expected in err.problem
 
 
-def test_explicit_cam_params_missing(tmp_path):
+def test_explicit_cam_params_missing(tmp_path: Path) -> None:
     path = _scene(tmp_path)
     err = _expect(path, cam_params=tmp_path / "nope.json")
     assert err.path == tmp_path / "nope.json"

@@ -52,8 +52,9 @@ def tum_associate_oracle(first: np.ndarray, second: np.ndarray, max_difference: 
     ("fr2_desk_ORB.txt", "fr2_desk_groundtruth.txt", 500),
 ])
 @pytest.mark.parametrize("max_dt", [0.02, 0.005])
-def test_association_follows_tum_rule_on_real_trajectories(shared_data, estimate, truth, limit,
-                                                           max_dt):
+def test_association_follows_tum_rule_on_real_trajectories(shared_data: Path, estimate: str,
+                                                           truth: str, limit: int | None,
+                                                           max_dt: float) -> None:
     folder = shared_data / "trajectories"
     est = read_tum(folder / estimate).timestamps[:limit]
     gt = np.unique(read_tum(folder / truth).timestamps)
@@ -67,7 +68,7 @@ def test_association_follows_tum_rule_on_real_trajectories(shared_data, estimate
     assert len(i) > 0.75 * len(est)  # most frames fall inside the motion capture's span
 
 
-def test_association_is_one_to_one_where_nearest_would_match_twice():
+def test_association_is_one_to_one_where_nearest_would_match_twice() -> None:
     # both colour stamps are nearest to depth 1.00; the second takes its other neighbour
     i, j = associate(np.array([1.0, 1.004]), np.array([0.99, 1.0, 1.012]), 0.02)
     assert i.tolist() == [0, 1] and j.tolist() == [1, 2]
@@ -99,7 +100,8 @@ def _tum_folder(root: Path, rgb_t: np.ndarray, depth_t: np.ndarray, size=(640, 4
     ("freiburg1_xyz-rgbdslam.txt", "freiburg1_xyz-groundtruth.txt", "fr1"),
     ("fr2_desk_ORB.txt", "fr2_desk_groundtruth.txt", "fr2"),
 ])
-def test_tum_folder_with_real_groundtruth(shared_data, tmp_path, estimate, truth, camera):
+def test_tum_folder_with_real_groundtruth(shared_data: Path, tmp_path: Path, estimate: str,
+                                          truth: str, camera: str) -> None:
     """Colour stamps of a real run, depth stamps a few ms off (one missing), the real
     100 Hz ground truth (fr2/desk's holds one repeated stamp): frames, poses and camera."""
     trajectories = shared_data / "trajectories"
@@ -138,7 +140,7 @@ def test_tum_folder_with_real_groundtruth(shared_data, tmp_path, estimate, truth
     assert len(read_tum_rgbd(root, max_dt_s=0.01)) == 6
 
 
-def test_undistortion_moves_points_to_their_pinhole_projection(tmp_path):
+def test_undistortion_moves_points_to_their_pinhole_projection(tmp_path: Path) -> None:
     """A dot drawn where OpenCV's distortion model (cv2.projectPoints) puts a 3-D point lands,
     after reading, where the pinhole intrinsics put it."""
     cam = TUM_CAMERAS["fr1"]
@@ -166,7 +168,8 @@ def _export_tum(tiny_sequence: Path, out: Path) -> Path:
 
 
 @pytest.mark.slow
-def test_round_trip_export_make_eventreplica_run(tiny_sequence, tmp_path, capsys):
+def test_round_trip_export_make_eventreplica_run(tiny_sequence: Path, tmp_path: Path,
+                                                 capsys: pytest.CaptureFixture[str]) -> None:
     """sequence -> export --format tum-rgbd -> make-eventreplica --layout tum-rgbd -> run."""
     src = Sequence.open(tiny_sequence)
     export = _export_tum(tiny_sequence, tmp_path / "export")
@@ -218,7 +221,8 @@ def _generic(tiny_sequence: Path, root: Path, depth_scale: float | None) -> dict
             "--trajectory": root / "traj.txt", "--intrinsics": root / "camera.yaml"}
 
 
-def test_generic_layout_reads_natural_order_and_the_yaml(tiny_sequence, tmp_path):
+def test_generic_layout_reads_natural_order_and_the_yaml(tiny_sequence: Path, tmp_path: Path
+                                                         ) -> None:
     src = Sequence.open(tiny_sequence)
     paths = _generic(tiny_sequence, tmp_path, src.depth_scale)
     scene = read_generic_rgbd(*paths.values())
@@ -231,7 +235,8 @@ def test_generic_layout_reads_natural_order_and_the_yaml(tiny_sequence, tmp_path
         np.testing.assert_array_equal(scene.depth(i), src.depth(i))
 
 
-def test_generic_layout_cli(tiny_sequence, tmp_path, capsys):
+def test_generic_layout_cli(tiny_sequence: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+                            ) -> None:
     src = Sequence.open(tiny_sequence)
     paths = _generic(tiny_sequence, tmp_path / "in", src.depth_scale)
     args = [a for k, v in paths.items() for a in (k, str(v))]
@@ -264,7 +269,7 @@ def _write(path: Path, text: str | bytes) -> Path:
 
 
 @pytest.fixture()
-def tum_export(tiny_sequence, tmp_path) -> Path:
+def tum_export(tiny_sequence: Path, tmp_path: Path) -> Path:
     return _export_tum(tiny_sequence, tmp_path / "export")
 
 
@@ -326,7 +331,9 @@ def _break(root: Path, case: str) -> tuple[list[str], Path, str]:
     "no-overlap", "no-camera", "yaml-missing-fx", "yaml-binary", "yaml-not-yaml",
     "yaml-distortion", "yaml-size", "yaml-centre", "yaml-missing-file",
 ])
-def test_bad_tum_input_is_one_line_naming_the_file(tum_export, tmp_path, capsys, case):
+def test_bad_tum_input_is_one_line_naming_the_file(tum_export: Path, tmp_path: Path,
+                                                   capsys: pytest.CaptureFixture[str], case: str
+                                                   ) -> None:
     extra, named, message = _break(tum_export, case)
     code = main(["make-eventreplica", "--layout", "tum-rgbd", "--input", str(tum_export),
                  "--out", str(tmp_path / "out"), "--width", "48", "--height", "32",
@@ -341,8 +348,9 @@ def test_bad_tum_input_is_one_line_naming_the_file(tum_export, tmp_path, capsys,
     ("scale", "missing 'depth_scale'"),
     ("empty", "holds no colour image"),
 ])
-def test_bad_generic_input_is_one_line_naming_the_file(tiny_sequence, tmp_path, capsys, case,
-                                                       message):
+def test_bad_generic_input_is_one_line_naming_the_file(tiny_sequence: Path, tmp_path: Path,
+                                                       capsys: pytest.CaptureFixture[str],
+                                                       case: str, message: str) -> None:
     paths = _generic(tiny_sequence, tmp_path / "in", None if case == "scale" else 5000.0)
     named = {"count": "--depth-dir", "poses": "--trajectory", "scale": "--intrinsics",
              "empty": "--rgb-dir"}[case]
@@ -378,13 +386,15 @@ def test_bad_generic_input_is_one_line_naming_the_file(tiny_sequence, tmp_path, 
     (["--input", "X", "--intrinsics", "c.yaml"], "need --layout tum-rgbd or generic"),
     (["--input", "X", "--tum-camera", "fr1"], "need --layout tum-rgbd or generic"),
 ])
-def test_bad_layout_options_are_one_line(tmp_path, capsys, monkeypatch, args, message):
+def test_bad_layout_options_are_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                         monkeypatch: pytest.MonkeyPatch, args, message: str
+                                         ) -> None:
     monkeypatch.chdir(tmp_path)
     code = main(["make-eventreplica", "--out", str(tmp_path / "out"), "--quiet", *args])
     assert_cli_error(code, capsys.readouterr().err, 2, message)
 
 
-def test_rgbd_input_validates_and_lists_its_inputs(tmp_path):
+def test_rgbd_input_validates_and_lists_its_inputs(tmp_path: Path) -> None:
     spec = RGBDInput(layout="generic", rgb_dir=tmp_path / "r", depth_dir=tmp_path / "d",
                      trajectory=tmp_path / "t.txt", camera=tmp_path / "c.yaml")
     assert spec.inputs() == [tmp_path / "r", tmp_path / "d", tmp_path / "t.txt",
@@ -396,7 +406,9 @@ def test_rgbd_input_validates_and_lists_its_inputs(tmp_path):
 
 
 @pytest.mark.parametrize("where", ["input", "inside"])
-def test_output_may_not_replace_the_input_layout(tum_export, capsys, where):
+def test_output_may_not_replace_the_input_layout(tum_export: Path,
+                                                 capsys: pytest.CaptureFixture[str], where: str
+                                                 ) -> None:
     """Never lose user data: the TUM folder (or a folder around it) is refused as --out, even
     with --overwrite, and nothing in it changes."""
     before = sorted(p.relative_to(tum_export) for p in tum_export.rglob("*"))
@@ -408,7 +420,7 @@ def test_output_may_not_replace_the_input_layout(tum_export, capsys, where):
     assert sorted(p.relative_to(tum_export) for p in tum_export.rglob("*")) == before
 
 
-def test_shareable_paths_are_relative_to_the_output_or_only_a_name(tmp_path):
+def test_shareable_paths_are_relative_to_the_output_or_only_a_name(tmp_path: Path) -> None:
     from egs_bench.outputs import shareable_path
 
     out = tmp_path / "data" / "seq"

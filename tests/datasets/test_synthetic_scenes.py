@@ -206,7 +206,7 @@ def test_make_synthetic_replays_a_tum_file(tmp_path: Path, shared_data: Path) ->
                                atol=1e-6)
 
 
-def test_cli_list_scenes_and_errors(capsys, tmp_path: Path) -> None:
+def test_cli_list_scenes_and_errors(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     assert cli_main(["list-scenes"]) == 0
     printed = capsys.readouterr().out
     for name in SCENES:

@@ -7,7 +7,9 @@ from __future__ import annotations
 import dataclasses
 import re
 import typing
+from collections.abc import Callable
 from pathlib import Path
+from types import ModuleType
 
 import pytest
 import typer
@@ -31,7 +33,7 @@ def _commands(command, path: str):
             yield from _commands(sub, f"{path} {name}")
 
 
-def test_cli_page_has_every_command_and_every_option(gen) -> None:
+def test_cli_page_has_every_command_and_every_option(gen: Callable[[str], ModuleType]) -> None:
     cli = gen("cli_reference")
     app = cli.egs_bench_app()
     page = cli.render(app)
@@ -50,7 +52,9 @@ def test_cli_page_has_every_command_and_every_option(gen) -> None:
                 assert f"`{name}`" in section, f"{path}: {name}"
 
 
-def test_cli_page_renders_groups_types_defaults_and_hides_hidden_commands(gen) -> None:
+def test_cli_page_renders_groups_types_defaults_and_hides_hidden_commands(
+        gen: Callable[[str], ModuleType]
+) -> None:
     cli = gen("cli_reference")
     app = typer.Typer()
     tools = typer.Typer(help="Tools.")
@@ -87,7 +91,9 @@ def _row(section: str, name: str) -> list[str]:
     return [cell.strip() for cell in re.split(r"(?<!\\)\|", line)[1:-1]]
 
 
-def test_config_page_has_every_field_with_default_preset_values_and_doc(gen) -> None:
+def test_config_page_has_every_field_with_default_preset_values_and_doc(
+        gen: Callable[[str], ModuleType]
+) -> None:
     ref = gen("config_reference")
     sections = _sections(ref.render(), 2)
     headers = None
@@ -111,7 +117,7 @@ def test_config_page_has_every_field_with_default_preset_values_and_doc(gen) -> 
     assert (budget["default"], budget["paper"], budget["cpu"]) == ("`100`", "`100`", "**`20`**")
 
 
-def test_config_field_docs_are_the_source_comments(gen) -> None:
+def test_config_field_docs_are_the_source_comments(gen: Callable[[str], ModuleType]) -> None:
     ref = gen("config_reference")
 
     @dataclasses.dataclass
@@ -172,8 +178,9 @@ def test_bounds_describe_their_range() -> None:
     assert config.Bounds(low=0, high=1, low_open=True).describe() == "in (0, 1]"
 
 
-def test_formats_page_lists_every_run_folder_file_and_sequence_file(gen, tiny_sequence: Path) \
-        -> None:
+def test_formats_page_lists_every_run_folder_file_and_sequence_file(
+        gen: Callable[[str], ModuleType], tiny_sequence: Path
+) -> None:
     from egs_bench.datasets import sequence
     from egs_bench.runs import folder
 
@@ -198,13 +205,13 @@ def test_formats_page_lists_every_run_folder_file_and_sequence_file(gen, tiny_se
         assert f"`{state}`" in page
 
 
-def test_layout_reads_continuation_lines(gen) -> None:
+def test_layout_reads_continuation_lines(gen: Callable[[str], ModuleType]) -> None:
     formats = gen("formats_reference")
     doc = "Title.\n\n    <run>/a.txt   first\n                  more\n    <run>/b/      two\n\nEnd."
     assert formats.layout(doc) == [("a.txt", "first more"), ("b/", "two")]
 
 
-def test_cli_page_lists_the_commands_by_the_help_s_panels(gen) -> None:
+def test_cli_page_lists_the_commands_by_the_help_s_panels(gen: Callable[[str], ModuleType]) -> None:
     from egs_bench.cli.app import PANELS
 
     cli = gen("cli_reference")

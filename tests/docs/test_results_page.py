@@ -5,7 +5,9 @@ from __future__ import annotations
 
 import re
 import statistics
+from collections.abc import Callable
 from pathlib import Path
+from types import ModuleType
 
 import pytest
 
@@ -63,7 +65,7 @@ def _cells(page: str, start: str) -> list[str]:
     return [cell.strip() for cell in line.strip("|").split("|")]
 
 
-def test_mean_std_n_and_provenance(gen, tmp_path: Path) -> None:
+def test_mean_std_n_and_provenance(gen: Callable[[str], ModuleType], tmp_path: Path) -> None:
     page = gen("results_page").render(_notes(tmp_path))
     ate = [1.0, 2.0, 4.0]
     psnr = [20.0, 21.0, 23.5]
@@ -78,7 +80,8 @@ def test_mean_std_n_and_provenance(gen, tmp_path: Path) -> None:
     assert "A note." in page and "Not measured yet" not in page  # absent CSV: skipped
 
 
-def test_per_row_provenance_and_row_filter(gen, tmp_path: Path) -> None:
+def test_per_row_provenance_and_row_filter(gen: Callable[[str], ModuleType], tmp_path: Path
+                                           ) -> None:
     page = gen("results_page").render(_notes(tmp_path))
     gpu = page.split("## GPU table", 1)[1]
     assert "- **date:** 2026-02-01 09:00 to 2026-02-03 10:00" in gpu
@@ -86,7 +89,8 @@ def test_per_row_provenance_and_row_filter(gen, tmp_path: Path) -> None:
     assert re.search(r"\| a +\| egs +\| 2 +\| 0, 2 +\| 2\.00 ± 0\.71 +\|", gpu)  # no aborted run
 
 
-def test_csv_without_entry_or_column_fails_naming_the_file(gen, tmp_path: Path) -> None:
+def test_csv_without_entry_or_column_fails_naming_the_file(gen: Callable[[str], ModuleType],
+                                                           tmp_path: Path) -> None:
     results = gen("results_page")
     notes = _notes(tmp_path)
     (notes / "new.csv").write_text("sequence,seed,ate_cm\na,0,1\n")
@@ -102,7 +106,8 @@ def test_csv_without_entry_or_column_fails_naming_the_file(gen, tmp_path: Path) 
         results.render(notes)
 
 
-def test_script_prints_the_page_or_one_error_line(gen, tmp_path: Path, capsys) -> None:
+def test_script_prints_the_page_or_one_error_line(gen: Callable[[str], ModuleType], tmp_path: Path,
+                                                  capsys: pytest.CaptureFixture[str]) -> None:
     results = gen("results_page")
     assert results.main([str(_notes(tmp_path))]) == 0
     assert capsys.readouterr().out.startswith("# Results")
@@ -111,7 +116,7 @@ def test_script_prints_the_page_or_one_error_line(gen, tmp_path: Path, capsys) -
     assert err.count("\n") == 1 and "results manifest not found" in err
 
 
-def test_committed_csvs_all_have_entries(gen) -> None:
+def test_committed_csvs_all_have_entries(gen: Callable[[str], ModuleType]) -> None:
     notes = Path(__file__).resolve().parents[2] / "docs" / "notes"
     page = gen("results_page").render(notes)
     for csv in notes.glob("*.csv"):

@@ -8,7 +8,9 @@ from __future__ import annotations
 import importlib.util
 import re
 import time
+from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -20,7 +22,7 @@ pytestmark = pytest.mark.skipif(importlib.util.find_spec("mkdocs") is None,
 
 
 @pytest.fixture(scope="module")
-def site(tmp_path_factory) -> Path:
+def site(tmp_path_factory: pytest.TempPathFactory) -> Path:
     out = tmp_path_factory.mktemp("site") / "site"
     result = _build(REPO, out)
     assert result.returncode == 0, result.stderr
@@ -28,7 +30,7 @@ def site(tmp_path_factory) -> Path:
 
 
 @pytest.fixture(scope="module")
-def chromium():
+def chromium() -> Iterator[Any]:
     scale = load_script("report_scale")
     missing = scale.chromium_missing()
     if missing:
@@ -37,7 +39,7 @@ def chromium():
         yield driver
 
 
-def test_search_works_from_file_urls(site: Path, chromium) -> None:
+def test_search_works_from_file_urls(site: Path, chromium: Any) -> None:
     from selenium.webdriver.common.by import By
 
     chromium.get((site / "index.html").resolve().as_uri())

@@ -8,7 +8,8 @@ import pytest
 
 
 @pytest.fixture(autouse=True)
-def _isolated_eval_env(tmp_path_factory, monkeypatch) -> None:
+def _isolated_eval_env(tmp_path_factory: pytest.TempPathFactory, monkeypatch: pytest.MonkeyPatch
+                       ) -> None:
     """Keep evo's settings file and the LPIPS cache out of the user's home."""
     home = tmp_path_factory.getbasetemp() / "eval_home"
     home.mkdir(exist_ok=True)
@@ -19,7 +20,7 @@ def _isolated_eval_env(tmp_path_factory, monkeypatch) -> None:
 
 
 @pytest.fixture(scope="session")
-def eval_sequence(tmp_path_factory) -> Path:
+def eval_sequence(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A 12-frame 64x48 canonical sequence with known poses and images (no events); see
     ``tests.helpers.eval_fixtures.make_sequence``."""
     from tests.helpers.eval_fixtures import make_sequence

@@ -27,7 +27,8 @@ def _evo_ape_cli(gt: Path, est: Path, extra: list[str], tmp_path: Path) -> dict:
 
 
 @pytest.mark.parametrize(("est_name", "gt_name"), PAIRS)
-def test_ate_equals_evo_ape_cli_se3(request, tmp_path, est_name, gt_name) -> None:
+def test_ate_equals_evo_ape_cli_se3(request: pytest.FixtureRequest, tmp_path: Path, est_name,
+                                    gt_name) -> None:
     est, gt = pair_paths(request, tmp_path, est_name, gt_name)
     ref = _evo_ape_cli(gt, est, ["-a"], tmp_path)
     ours = ate_from_files(est, gt, align="se3")
@@ -37,7 +38,8 @@ def test_ate_equals_evo_ape_cli_se3(request, tmp_path, est_name, gt_name) -> Non
 
 
 @pytest.mark.parametrize(("est_name", "gt_name"), [SYNTHETIC, REAL[0]])
-def test_ate_equals_evo_ape_cli_sim3(request, tmp_path, est_name, gt_name) -> None:
+def test_ate_equals_evo_ape_cli_sim3(request: pytest.FixtureRequest, tmp_path: Path, est_name,
+                                     gt_name) -> None:
     est, gt = pair_paths(request, tmp_path, est_name, gt_name)
     ref = _evo_ape_cli(gt, est, ["-as"], tmp_path)
     ours = ate_from_files(est, gt, align="sim3")
@@ -101,7 +103,7 @@ def test_ate_analytic_noise_matches_independent_umeyama() -> None:
     assert 0.97 * noise_rmse < res.rmse <= noise_rmse
 
 
-def test_ate_bad_inputs(tmp_path) -> None:
+def test_ate_bad_inputs(tmp_path: Path) -> None:
     gt = _loop(50)
     with pytest.raises(ConfigError, match="unknown alignment"):
         compute_ate(gt, gt, align="affine")

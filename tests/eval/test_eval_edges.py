@@ -47,7 +47,7 @@ def _doubled(src: Path, out: Path, shift_m: float = 0.5) -> Trajectory:
 
 
 def test_repeated_stamps_are_scored_once_equal_to_evo_on_the_deduplicated_file(
-        shared_data, tmp_path) -> None:
+        shared_data: Path, tmp_path: Path) -> None:
     d = shared_data / "trajectories"
     doubled, once = tmp_path / "doubled_est.txt", tmp_path / "once_est.txt"
     traj = _doubled(d / EST_NAME, doubled)
@@ -66,7 +66,7 @@ def test_repeated_stamps_are_scored_once_equal_to_evo_on_the_deduplicated_file(
     assert rpe.rmse == rpe_once.rmse and rpe.notes == ours.notes
 
 
-def test_repeated_stamp_in_real_ground_truth(shared_data, tmp_path) -> None:
+def test_repeated_stamp_in_real_ground_truth(shared_data: Path, tmp_path: Path) -> None:
     """TUM's fr2/desk ground truth repeats 1311868229.5760 with two poses 1 mm apart."""
     d = shared_data / "trajectories"
     gt = read_tum(d / "fr2_desk_groundtruth.txt")
@@ -80,7 +80,8 @@ def test_repeated_stamp_in_real_ground_truth(shared_data, tmp_path) -> None:
     assert merge_duplicate_stamps(merged, "x")[1] is None
 
 
-def test_ate_cli_warns_about_repeated_stamps(shared_data, tmp_path, capsys) -> None:
+def test_ate_cli_warns_about_repeated_stamps(shared_data: Path, tmp_path: Path,
+                                             capsys: pytest.CaptureFixture[str]) -> None:
     d = shared_data / "trajectories"
     doubled = tmp_path / "doubled_est.txt"
     _doubled(d / EST_NAME, doubled)
@@ -91,7 +92,7 @@ def test_ate_cli_warns_about_repeated_stamps(shared_data, tmp_path, capsys) -> N
     assert "warning: doubled_est.txt:" in out
 
 
-def test_eval_of_a_run_with_a_repeated_stamp(tmp_path, eval_sequence) -> None:
+def test_eval_of_a_run_with_a_repeated_stamp(tmp_path: Path, eval_sequence: Path) -> None:
     run = make_run(tmp_path, eval_sequence)
     clean = evaluate_run(run.path, "egs", write=False)
     est = run.read_trajectory()
@@ -105,8 +106,9 @@ def test_eval_of_a_run_with_a_repeated_stamp(tmp_path, eval_sequence) -> None:
     assert not any(str(tmp_path) in n for n in dup["notes"])  # metrics.json holds no paths
 
 
-def test_monogs_protocol_with_too_few_keyframes_names_keyframes_file(tmp_path, eval_sequence,
-                                                                      capsys) -> None:
+def test_monogs_protocol_with_too_few_keyframes_names_keyframes_file(
+        tmp_path: Path, eval_sequence: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     run = make_run(tmp_path, eval_sequence, keyframes=(0,))
     with pytest.raises(InputError, match=r"keyframes\.txt: lists 1 keyframe\(s\); protocol "
                                          r"'monogs' evaluates ATE on keyframes") as err:

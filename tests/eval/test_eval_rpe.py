@@ -58,14 +58,16 @@ def _assert_same(ours, ref_zip: zipfile.ZipFile) -> None:
 
 @pytest.mark.parametrize(("est_name", "gt_name"), PAIRS)
 @pytest.mark.parametrize(("ours", "evo_args"), OPTIONS)
-def test_rpe_equals_evo_rpe(request, tmp_path, est_name, gt_name, ours, evo_args) -> None:
+def test_rpe_equals_evo_rpe(request: pytest.FixtureRequest, tmp_path: Path, est_name, gt_name, ours,
+                            evo_args) -> None:
     est, gt = pair_paths(request, tmp_path, est_name, gt_name)
     with _evo_rpe_function(gt, est, evo_args, tmp_path / "res.zip") as ref:
         _assert_same(rpe_from_files(est, gt, **ours), ref)
 
 
 @pytest.mark.parametrize(("est_name", "gt_name"), [SYNTHETIC, REAL[1]])
-def test_rpe_equals_evo_rpe_executable(request, tmp_path, est_name, gt_name) -> None:
+def test_rpe_equals_evo_rpe_executable(request: pytest.FixtureRequest, tmp_path: Path, est_name,
+                                       gt_name) -> None:
     est, gt = pair_paths(request, tmp_path, est_name, gt_name)
     evo_rpe = Path(sys.executable).parent / "evo_rpe"
     out = tmp_path / "res.zip"
@@ -154,7 +156,7 @@ def test_rpe_matches_independent_computation_and_sim3_scale() -> None:
     assert sim3.rmse == pytest.approx(res_t.rmse, rel=0.05)
 
 
-def test_rpe_bad_options_and_short_trajectories(tmp_path) -> None:
+def test_rpe_bad_options_and_short_trajectories(tmp_path: Path) -> None:
     gt = _wiggle(30)
     with pytest.raises(ConfigError, match="unknown RPE relation 'yaw'"):
         compute_rpe(gt, gt, relation="yaw")
@@ -182,7 +184,8 @@ def test_rpe_bad_options_and_short_trajectories(tmp_path) -> None:
     assert "no pose pair 1 meters apart" in summary["per_metre"]["note"]
 
 
-def test_cli_rpe_and_ate_take_gt_first(shared_data, tmp_path, capsys) -> None:
+def test_cli_rpe_and_ate_take_gt_first(shared_data: Path, tmp_path: Path,
+                                       capsys: pytest.CaptureFixture[str]) -> None:
     d = shared_data / "trajectories"
     gt, est = d / "freiburg1_xyz-groundtruth.txt", d / "freiburg1_xyz-rgbdslam.txt"
     ref = rpe_from_files(est, gt, relation="angle_deg", delta=1, delta_unit="m")
@@ -206,7 +209,7 @@ def test_cli_rpe_and_ate_take_gt_first(shared_data, tmp_path, capsys) -> None:
     assert_cli_error(code, err, 2, "egs-bench rpe takes GT EST", "--est-first")
 
 
-def test_file_role_hints(tmp_path) -> None:
+def test_file_role_hints(tmp_path: Path) -> None:
     from egs_bench.runs.folder import RunFolder
 
     run = RunFolder.create(tmp_path / "run", method="m", sequence_name="s",

@@ -18,7 +18,8 @@ DATA = Path(__file__).parent / "metrics_files"
 
 
 @pytest.fixture(scope="module")
-def evaluated(tmp_path_factory, eval_sequence) -> tuple[Path, dict[str, Any]]:
+def evaluated(tmp_path_factory: pytest.TempPathFactory, eval_sequence: Path
+              ) -> tuple[Path, dict[str, Any]]:
     """A run folder evaluated by today's code, and what evaluation returned."""
     run = make_run(tmp_path_factory.mktemp("runs"), eval_sequence)
     return run.path, evaluate_run(run.path, "egs")
@@ -34,7 +35,8 @@ def _rewrite(src: Path, dst_root: Path, change) -> Path:
     return dst_root
 
 
-def test_a_file_written_by_evaluation_reads_back_whole(evaluated) -> None:
+def test_a_file_written_by_evaluation_reads_back_whole(evaluated: tuple[Path, dict[str, Any]]
+                                                       ) -> None:
     run_dir, written = evaluated
     m = read_metrics(run_dir)
     assert m.protocol == "egs" and m.protocol_settings == written["protocol"]
@@ -63,7 +65,8 @@ def test_a_file_written_by_evaluation_reads_back_whole(evaluated) -> None:
     assert parse_metrics(written, run_dir / "metrics.json") == m  # JSON changes nothing
 
 
-def test_a_file_without_the_sections_added_later_still_reads(evaluated, tmp_path) -> None:
+def test_a_file_without_the_sections_added_later_still_reads(evaluated: tuple[Path, dict[str, Any]],
+                                                             tmp_path: Path) -> None:
     """Files written before RPE and coverage were recorded have neither key; a run without
     timing.json or renders has ``speed`` / ``rendering`` null."""
     run_dir, written = evaluated
@@ -89,7 +92,7 @@ def test_a_file_without_the_sections_added_later_still_reads(evaluated, tmp_path
     assert minimal.renders_scored is None and minimal.ate_poses == written["ate"]["n_matched"]
 
 
-def test_a_file_of_the_first_layout_reads(tmp_path) -> None:
+def test_a_file_of_the_first_layout_reads(tmp_path: Path) -> None:
     """``metrics_files/metrics_4061f7e.json`` was written by ``evaluate_run`` at commit 4061f7e (the
     first metrics.json: no ``rpe``, no ``coverage``) on the fixtures of that commit."""
     shutil.copy(DATA / "metrics_4061f7e.json", tmp_path / "metrics.json")
@@ -136,8 +139,8 @@ def _set(path: tuple[str, ...], value: Any):
     (_set(("notes",), "one note"), "'notes' must be a list of strings"),
     (_set(("schema_version",), "1"), "'schema_version' must be an integer, found '1'"),
 ])
-def test_a_wrong_field_is_one_line_naming_the_file(evaluated, tmp_path, change, problem
-                                                   ) -> None:
+def test_a_wrong_field_is_one_line_naming_the_file(evaluated: tuple[Path, dict[str, Any]],
+                                                   tmp_path: Path, change, problem) -> None:
     folder = _rewrite(evaluated[0], tmp_path / "bad", change)
     with pytest.raises(InputError) as info:
         read_metrics(folder)
@@ -151,7 +154,7 @@ def test_a_wrong_field_is_one_line_naming_the_file(evaluated, tmp_path, change, 
     (b"\x89PNG\r\n\x1a\n\x00\xff", "not a UTF-8 text file (binary or corrupt)"),
     (b"[1, 2]", "not an egs-bench metrics file (no 'protocol'/'ate')"),
 ])
-def test_a_missing_or_unreadable_file_is_one_line_naming_it(tmp_path, content, problem
+def test_a_missing_or_unreadable_file_is_one_line_naming_it(tmp_path: Path, content, problem: str
                                                             ) -> None:
     if content is not None:
         (tmp_path / "metrics.json").write_bytes(content)

@@ -27,7 +27,7 @@ def _bench(*extra: str, cwd: Path) -> subprocess.CompletedProcess:
 
 
 @pytest.mark.slow
-def test_status_run_and_resume(tmp_path: Path, monkeypatch) -> None:
+def test_status_run_and_resume(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     worker_env(monkeypatch)
     make_sequence(tmp_path / "data", "sa", 8, 0)
 
@@ -148,7 +148,8 @@ def test_seed_intervals_match_the_two_seed_case() -> None:
 
 
 @pytest.mark.slow
-def test_numbers_come_only_from_runs_of_this_configuration(tmp_path: Path, monkeypatch) -> None:
+def test_numbers_come_only_from_runs_of_this_configuration(tmp_path: Path,
+                                                           monkeypatch: pytest.MonkeyPatch) -> None:
     """Run folders made with another configuration (here another frame limit; the folder names
     are the same) are reported stale, not tabulated under the new label; ``--status``
     evaluates nothing."""
@@ -174,7 +175,7 @@ def test_numbers_come_only_from_runs_of_this_configuration(tmp_path: Path, monke
 
 
 @pytest.mark.slow
-def test_bad_arguments_get_one_line(tmp_path: Path, monkeypatch) -> None:
+def test_bad_arguments_get_one_line(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     worker_env(monkeypatch)
     make_sequence(tmp_path / "data", "sa", 8, 0)
 

@@ -1,6 +1,8 @@
 """Comparison figures: several trajectories with the ground truth, a qualitative grid with
 zoomed crops and per-image PSNR (checked against an independent computation), file formats."""
 
+from pathlib import Path
+
 import imageio.v3 as iio
 import numpy as np
 import pytest
@@ -19,12 +21,13 @@ from egs_bench.eval.figures import (
 )
 from egs_bench.eval.image_metrics import psnr_masked
 from egs_bench.eval.protocols import get_protocol
+from egs_bench.runs.folder import RunFolder
 from tests.helpers.cli import assert_cli_error
 from tests.helpers.sweep_fixtures import BAD, GOOD, make_sequence
 
 
 @pytest.fixture(scope="module")
-def runs(tmp_path_factory):
+def runs(tmp_path_factory: pytest.TempPathFactory) -> tuple[Sequence, RunFolder, RunFolder]:
     root = tmp_path_factory.mktemp("fig")
     seq = Sequence.open(make_sequence(root / "data", "sa", 8, 0))
     good = GOOD.run(seq, root / "runs/good", seed=0)
@@ -32,7 +35,9 @@ def runs(tmp_path_factory):
     return seq, good, bad
 
 
-def test_trajectory_figure_lists_every_method_and_the_ground_truth(runs, tmp_path) -> None:
+def test_trajectory_figure_lists_every_method_and_the_ground_truth(
+        runs: tuple[Sequence, RunFolder, RunFolder], tmp_path: Path
+) -> None:
     seq, good, bad = runs
     svg = trajectory_figure([good.path, bad.path], tmp_path / "traj.svg").read_text()
     proto = get_protocol("egs")
@@ -59,7 +64,8 @@ def test_crop_strip_enlarges_pixels_exactly() -> None:
     assert CROP_COLORS[0] == "#e41a1c" and (strip[0, x0] == red).all()
 
 
-def test_comparison_grid_psnr_and_crops(runs, tmp_path) -> None:
+def test_comparison_grid_psnr_and_crops(runs: tuple[Sequence, RunFolder, RunFolder], tmp_path: Path
+                                        ) -> None:
     seq, good, bad = runs
     svg = qualitative_figure([good.path, bad.path], tmp_path / "grid.svg", frames=[0, 5],
                              crops=[(4, 4, 12, 8), (30, 20, 10, 8)]).read_text()
@@ -81,7 +87,8 @@ def test_comparison_grid_psnr_and_crops(runs, tmp_path) -> None:
         qualitative_figure([good.path], tmp_path / "x.png", frames=[99])
 
 
-def test_figure_cli(runs, tmp_path, capsys) -> None:
+def test_figure_cli(runs: tuple[Sequence, RunFolder, RunFolder], tmp_path: Path,
+                    capsys: pytest.CaptureFixture[str]) -> None:
     _, good, bad = runs
     out = tmp_path / "q.pdf"
     assert main(["figure", "qualitative", str(good.path), str(bad.path), "-o", str(out),

@@ -106,7 +106,9 @@ def test_a_run_that_overruns_is_stopped_recorded_and_retried_when_it_fits(tmp_pa
     assert sorted(rows.loc[rows["status"] == "done", "seed"]) == [0, 1, 2]
 
 
-def test_summary_is_the_cpu_budget_tables_over_done_rows(tmp_path: Path, capsys) -> None:
+def test_summary_is_the_cpu_budget_tables_over_done_rows(tmp_path: Path,
+                                                         capsys: pytest.CaptureFixture[str]
+                                                         ) -> None:
     csv = tmp_path / "runs.csv"
     rows = [{"sequence": s, "method": m, "seed": k, "ate_cm": a * (1 + 0.1 * k),
              "psnr_db": p + 0.2 * k, "status": "done"}
@@ -127,7 +129,9 @@ def test_the_committed_csv_is_a_table_of_this_script() -> None:
     assert list(ga.read_rows(ga.DEFAULT_CSV).columns) == ga.COLUMNS
 
 
-def test_a_csv_without_the_columns_is_one_line_naming_it(tmp_path: Path, capsys) -> None:
+def test_a_csv_without_the_columns_is_one_line_naming_it(tmp_path: Path,
+                                                         capsys: pytest.CaptureFixture[str]
+                                                         ) -> None:
     bad = tmp_path / "bad.csv"
     bad.write_text("sequence,method\na,egs\n")
     assert ga.main(["--summary-only", "--csv", str(bad)]) == 3

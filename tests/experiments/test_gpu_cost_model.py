@@ -14,14 +14,15 @@ from tests.helpers.bench_scripts import load_script
 cm = load_script("gpu_cost_model")
 
 
-def test_check_passes_on_the_committed_measurements(capsys) -> None:
+def test_check_passes_on_the_committed_measurements(capsys: pytest.CaptureFixture[str]) -> None:
     assert cm.main(["--check"]) == 0
     out = capsys.readouterr().out
     assert "egs: measured 0.37 FPS" in out and "monogs: measured 1.78 FPS" in out
 
 
 @pytest.mark.parametrize("constant", ["map_camera_blur_ms=3.5", "launch_ms=0.05"])
-def test_a_perturbed_constant_fails_the_check(constant: str, capsys) -> None:
+def test_a_perturbed_constant_fails_the_check(constant: str, capsys: pytest.CaptureFixture[str]
+                                              ) -> None:
     assert cm.main(["--check", "--constant", constant]) == 1
     assert "OFF by more than 25 %" in capsys.readouterr().out
 
@@ -78,7 +79,8 @@ def test_without_a_log_the_window_is_at_its_largest(tmp_path: Path) -> None:
 
 
 def test_a_run_folder_without_stats_is_one_line_naming_the_file(tmp_path: Path,
-                                                                 capsys) -> None:
+                                                                capsys: pytest.CaptureFixture[str]
+                                                                ) -> None:
     _write_run(tmp_path / "run", log=None)
     (tmp_path / "run" / "slam_stats.json").unlink()
     assert cm.main(["--run", str(tmp_path / "run")]) == 3
@@ -86,7 +88,7 @@ def test_a_run_folder_without_stats_is_one_line_naming_the_file(tmp_path: Path,
     assert len(err) == 1 and "slam_stats.json" in err[0] and "not found" in err[0]
 
 
-def test_a_bad_constant_is_a_usage_error(capsys) -> None:
+def test_a_bad_constant_is_a_usage_error(capsys: pytest.CaptureFixture[str]) -> None:
     assert cm.main(["--check", "--constant", "nope=1"]) == 2
     assert "--constant" in capsys.readouterr().err
 
@@ -111,7 +113,7 @@ def test_pixel_scalings_bracket_a_reduced_resolution() -> None:
         cm.predict(small, scaling="tiles")
 
 
-def test_presets_table_labels_predictions(capsys) -> None:
+def test_presets_table_labels_predictions(capsys: pytest.CaptureFixture[str]) -> None:
     assert cm.main(["--presets"]) == 0
     out = capsys.readouterr().out
     assert out.startswith("| prediction") and "| egs, cpu | 300 |" in out

@@ -3,6 +3,7 @@ ranks, Markdown and LaTeX (compiled with pdflatex where installed), the CLI."""
 
 import json
 import shutil
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -58,7 +59,7 @@ def _rows(md: str) -> list[list[str]]:
     return [[c.strip() for c in line.split("|")[1:-1]] for line in lines]
 
 
-def test_ablation_rows_come_from_the_configurations(tmp_path) -> None:
+def test_ablation_rows_come_from_the_configurations(tmp_path: Path) -> None:
     made, skipped = build_tables(_runs(tmp_path / "runs"), evaluate_missing=False)
     assert set(made) == {"ate", "rendering", "ablation_events", "ablation_crf"}
     assert skipped == ["edi: not made (needs monogs-edi runs)"]
@@ -74,7 +75,7 @@ def test_ablation_rows_come_from_the_configurations(tmp_path) -> None:
     assert crf[1][1].startswith("**1.11**") and crf[0][1].startswith("<u>1.31</u>")
 
 
-def test_ate_and_rendering_layouts(tmp_path) -> None:
+def test_ate_and_rendering_layouts(tmp_path: Path) -> None:
     made, _ = build_tables(_runs(tmp_path / "runs"), evaluate_missing=False)
     ate = render_markdown(made["ate"])
     rows = _rows(ate)
@@ -93,7 +94,7 @@ def test_ate_and_rendering_layouts(tmp_path) -> None:
     assert rendering[best_fps][-1].startswith("**")  # render FPS: higher is better
 
 
-def test_edi_table_when_monogs_edi_runs_exist(tmp_path) -> None:
+def test_edi_table_when_monogs_edi_runs_exist(tmp_path: Path) -> None:
     methods = {"monogs": METHODS["monogs"], "monogs-edi": METHODS["monogs"], "egs": {}}
     made, _ = build_tables(_runs(tmp_path / "runs", methods, seqs=("room0",)),
                            evaluate_missing=False, tables=["edi"])
@@ -105,7 +106,8 @@ def test_edi_table_when_monogs_edi_runs_exist(tmp_path) -> None:
 
 
 @pytest.mark.skipif(shutil.which("pdflatex") is None, reason="pdflatex not installed")
-def test_paper_tables_cli_compiles_with_pdflatex(tmp_path, capsys) -> None:
+def test_paper_tables_cli_compiles_with_pdflatex(tmp_path: Path, capsys: pytest.CaptureFixture[str]
+                                                 ) -> None:
     sweep = tmp_path / "sweep"
     _runs(sweep / "runs", seqs=("room0", "room1", "office1"))
     assert main(["paper-tables", str(sweep), "--check"]) == 0
@@ -124,7 +126,9 @@ def test_paper_tables_cli_compiles_with_pdflatex(tmp_path, capsys) -> None:
     assert main(["paper-tables", str(sweep), "--overwrite", "--width", "natural"]) == 0
 
 
-def test_an_unknown_protocol_is_refused_not_tabulated_empty(tmp_path, capsys) -> None:
+def test_an_unknown_protocol_is_refused_not_tabulated_empty(tmp_path: Path,
+                                                            capsys: pytest.CaptureFixture[str]
+                                                            ) -> None:
     """An unknown --protocol used to give empty tables and exit 0 (every run "not evaluated");
     it is one line naming the known protocols, and nothing is written."""
     sweep = tmp_path / "sweep"

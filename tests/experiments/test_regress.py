@@ -2,6 +2,7 @@
 baseline refresh, the CLI's exit code."""
 
 import json
+from pathlib import Path
 
 import pandas as pd
 import pytest
@@ -41,7 +42,7 @@ BASE = {("egs", "s1", 0): (0.010, 30.0), ("egs", "s1", 1): (0.012, 30.2),
         ("monogs", "s1", 0): (0.020, 28.0), ("egs", "s2", 0): (0.015, 25.0)}
 
 
-def test_regress_passes_on_identical_and_small_changes(tmp_path) -> None:
+def test_regress_passes_on_identical_and_small_changes(tmp_path: Path) -> None:
     base = summary_of(_runs(tmp_path / "base", BASE))
     table = compare(base, base)
     assert not failed(table) and set(table["verdict"]) == {"ok"}
@@ -52,7 +53,7 @@ def test_regress_passes_on_identical_and_small_changes(tmp_path) -> None:
     assert not failed(table)
 
 
-def test_regress_fails_on_planted_regressions_direction_aware(tmp_path) -> None:
+def test_regress_fails_on_planted_regressions_direction_aware(tmp_path: Path) -> None:
     base = summary_of(_runs(tmp_path / "base", BASE))
     worse = dict(BASE)
     worse[("egs", "s1", 0)] = (0.016, 30.0)     # egs/s1 ATE mean 1.1 -> 1.4 cm: +27 %
@@ -72,7 +73,7 @@ def test_regress_fails_on_planted_regressions_direction_aware(tmp_path) -> None:
     assert "ATE [cm]" in text and "1.1000" in text and "1.4000" in text  # display unit: cm
 
 
-def test_regress_missing_and_lost_runs_fail(tmp_path) -> None:
+def test_regress_missing_and_lost_runs_fail(tmp_path: Path) -> None:
     base = summary_of(_runs(tmp_path / "base", BASE))
     cur = {k: v for k, v in BASE.items() if k[1] != "s2"}  # egs on s2 did not run
     cur[("monogs", "s1", 0)] = "lost"
@@ -86,7 +87,7 @@ def test_regress_missing_and_lost_runs_fail(tmp_path) -> None:
     assert failed(table)
 
 
-def test_tolerance_file_and_errors(tmp_path) -> None:
+def test_tolerance_file_and_errors(tmp_path: Path) -> None:
     tol = tmp_path / "tol.yaml"
     tol.write_text("ate: {abs: 0.01}\nlpips: null\nfps: {rel: 0.5}\n")
     loaded = load_tolerances(tol)
@@ -105,7 +106,8 @@ def test_tolerance_file_and_errors(tmp_path) -> None:
         summary_of(bad)
 
 
-def test_regress_cli_update_and_exit_codes(tmp_path, capsys) -> None:
+def test_regress_cli_update_and_exit_codes(tmp_path: Path, capsys: pytest.CaptureFixture[str]
+                                           ) -> None:
     base_runs = _runs(tmp_path / "base", BASE)
     baseline = tmp_path / "baseline.csv"
     assert main(["regress", str(baseline), str(base_runs), "--update"]) == 0

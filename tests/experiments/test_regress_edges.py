@@ -38,13 +38,17 @@ def _like_baseline(root: Path, frames: int) -> Path:
     return root
 
 
-def test_committed_baseline_matches_runs_over_its_12_frames(tmp_path, capsys) -> None:
+def test_committed_baseline_matches_runs_over_its_12_frames(tmp_path: Path,
+                                                            capsys: pytest.CaptureFixture[str]
+                                                            ) -> None:
     runs = _like_baseline(tmp_path / "runs12", 12)
     assert main(["regress", str(BASELINE), str(runs)]) == 0
     assert "passed: 8 checks, no regression" in capsys.readouterr().out
 
 
-def test_runs_over_other_frames_are_not_compared_and_say_so(tmp_path, capsys) -> None:
+def test_runs_over_other_frames_are_not_compared_and_say_so(tmp_path: Path,
+                                                            capsys: pytest.CaptureFixture[str]
+                                                            ) -> None:
     runs = _like_baseline(tmp_path / "runs6", 6)
     assert main(["regress", str(BASELINE), str(runs)]) == 1
     out = capsys.readouterr().out
@@ -59,7 +63,7 @@ def test_runs_over_other_frames_are_not_compared_and_say_so(tmp_path, capsys) ->
         "the baseline has 12 frames (incomplete)"}
 
 
-def test_summary_records_the_frames_and_mixed_counts(tmp_path) -> None:
+def test_summary_records_the_frames_and_mixed_counts(tmp_path: Path) -> None:
     root = tmp_path / "runs"
     _run(root, "egs", 6, 0.01, 20, 0.8, 0.2, seed=0)
     _run(root, "egs", 12, 0.01, 20, 0.8, 0.2, seed=1)
@@ -73,7 +77,8 @@ def test_summary_records_the_frames_and_mixed_counts(tmp_path) -> None:
     assert again.loc["egs", "frames"] == "6/12" and again.loc["monogs", "frames"] == "40"
 
 
-def test_unparsable_baseline_cells_are_an_error_not_new(tmp_path, capsys) -> None:
+def test_unparsable_baseline_cells_are_an_error_not_new(tmp_path: Path,
+                                                        capsys: pytest.CaptureFixture[str]) -> None:
     runs = _like_baseline(tmp_path / "runs12", 12)
     bad = tmp_path / "abc.csv"
     text = BASELINE.read_text().splitlines()
@@ -90,7 +95,8 @@ def test_unparsable_baseline_cells_are_an_error_not_new(tmp_path, capsys) -> Non
         assert_cli_error(code, capsys.readouterr().err, 3, f"line 2: ate_rmse_m_mean is '{value}'")
 
 
-def test_unknown_or_unchecked_metrics_are_refused(tmp_path, capsys) -> None:
+def test_unknown_or_unchecked_metrics_are_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]
+                                                  ) -> None:
     runs = _like_baseline(tmp_path / "runs12", 12)
     for metrics, message in (("foo", "unknown metric 'foo' to check"),
                              ("ate,foo", "unknown metric 'foo' to check"),
@@ -106,7 +112,8 @@ def test_unknown_or_unchecked_metrics_are_refused(tmp_path, capsys) -> None:
         compare(summary_of(BASELINE), summary_of(runs), metrics=["foo"])
 
 
-def test_a_check_that_compares_nothing_fails(tmp_path, capsys) -> None:
+def test_a_check_that_compares_nothing_fails(tmp_path: Path, capsys: pytest.CaptureFixture[str]
+                                             ) -> None:
     runs = _like_baseline(tmp_path / "runs12", 12)
     empty = tmp_path / "empty.csv"
     df = pd.read_csv(BASELINE)
@@ -123,7 +130,9 @@ def test_a_check_that_compares_nothing_fails(tmp_path, capsys) -> None:
     assert "FAILED: nothing compared with the baseline" in render(table)
 
 
-def test_baseline_without_frames_column_asks_for_a_refresh(tmp_path, capsys) -> None:
+def test_baseline_without_frames_column_asks_for_a_refresh(tmp_path: Path,
+                                                           capsys: pytest.CaptureFixture[str]
+                                                           ) -> None:
     runs = _like_baseline(tmp_path / "runs12", 12)
     old = tmp_path / "old.csv"
     old.write_text(pd.read_csv(BASELINE).drop(columns="frames").to_csv(index=False))

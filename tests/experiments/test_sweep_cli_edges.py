@@ -5,6 +5,7 @@ literal `%j` folder."""
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import pytest
 import yaml
@@ -14,7 +15,7 @@ from tests.helpers.sweep_fixtures import GOOD_PATH, make_sequence, worker_env
 
 
 @pytest.fixture
-def sweep_file(tmp_path, monkeypatch):
+def sweep_file(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
     worker_env(monkeypatch)
     make_sequence(tmp_path / "data", "sa", 6, 0)
     monkeypatch.chdir(tmp_path)
@@ -25,7 +26,8 @@ def sweep_file(tmp_path, monkeypatch):
     return path
 
 
-def test_dry_run_writes_nothing(sweep_file, tmp_path, capsys) -> None:
+def test_dry_run_writes_nothing(sweep_file: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+                                ) -> None:
     out = tmp_path / "out"
     assert main(["sweep", str(sweep_file), "--dry-run"]) == 0
     assert "would run sa/good/seed0" in capsys.readouterr().out
@@ -37,7 +39,8 @@ def test_dry_run_writes_nothing(sweep_file, tmp_path, capsys) -> None:
     assert (out / "sweep_summary.md").read_text() == summary  # the real summary stays
 
 
-def test_status_exits_1_unless_every_run_is_done(sweep_file, tmp_path, capsys) -> None:
+def test_status_exits_1_unless_every_run_is_done(sweep_file: Path, tmp_path: Path,
+                                                 capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "out"
     assert main(["sweep", str(sweep_file), "--status"]) == 1  # pending: not complete
     assert main(["sweep", str(sweep_file)]) == 0
@@ -52,7 +55,7 @@ def test_status_exits_1_unless_every_run_is_done(sweep_file, tmp_path, capsys) -
 
 
 @pytest.mark.slow
-def test_submitit_leaves_no_literal_job_id_folder(sweep_file, tmp_path) -> None:
+def test_submitit_leaves_no_literal_job_id_folder(sweep_file: Path, tmp_path: Path) -> None:
     pytest.importorskip("submitit")
     assert main(["sweep", str(sweep_file), "--backend", "slurm", "--cluster", "local"]) == 0
     state = tmp_path / "out/.sweep/submitit"

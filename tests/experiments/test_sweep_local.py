@@ -24,7 +24,7 @@ EGS_BENCH = [sys.executable, "-c", "from egs_bench.cli import run; run()"]
 
 
 @pytest.fixture
-def sweep_dir(tmp_path, monkeypatch):
+def sweep_dir(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
     worker_env(monkeypatch)
     make_sequence(tmp_path / "data", "sa", 8, 0)
     make_sequence(tmp_path / "data", "sb", 8, 1)
@@ -43,7 +43,7 @@ def _records(out: Path) -> dict[str, dict]:
 
 
 @pytest.mark.slow
-def test_sweep_survives_kill_and_resumes(sweep_dir) -> None:
+def test_sweep_survives_kill_and_resumes(sweep_dir: Path) -> None:
     sweep = _write(sweep_dir / "s.yaml", {
         "methods": [GOOD_PATH, BAD_PATH],
         "sequences": ["data/sa", "data/sb"], "seeds": [0, 1], "local": {"jobs": 2}})
@@ -120,7 +120,7 @@ def _sweep_stopped_after_the_method(sweep_dir: Path) -> tuple[Path, subprocess.P
 
 
 @pytest.mark.slow
-def test_run_interrupted_after_the_method_finished_is_only_evaluated(sweep_dir) -> None:
+def test_run_interrupted_after_the_method_finished_is_only_evaluated(sweep_dir: Path) -> None:
     """SIGTERM after the method marked its folder done (before the evaluation): the next
     invocation evaluates the kept outputs instead of rerunning the method."""
     sweep, proc, run_dir = _sweep_stopped_after_the_method(sweep_dir)
@@ -141,7 +141,7 @@ def test_run_interrupted_after_the_method_finished_is_only_evaluated(sweep_dir) 
     assert "evaluation of finished run sa/good/seed0" in (run_dir / "worker.log").read_text()
 
 
-def test_repeated_sigterms_do_not_leave_the_run_recorded_running(sweep_dir) -> None:
+def test_repeated_sigterms_do_not_leave_the_run_recorded_running(sweep_dir: Path) -> None:
     """``kill`` of the process group, then the pool stopping its workers: a worker gets several
     SIGTERMs. One arriving while the first was being recorded killed the worker with its record
     still ``running`` (this burst caught the old code in 1 of 6 tries; the deterministic check
@@ -157,7 +157,8 @@ def test_repeated_sigterms_do_not_leave_the_run_recorded_running(sweep_dir) -> N
 
 
 @pytest.mark.slow
-def test_sweep_failures_conflicts_and_retries(sweep_dir, monkeypatch) -> None:
+def test_sweep_failures_conflicts_and_retries(sweep_dir: Path, monkeypatch: pytest.MonkeyPatch
+                                              ) -> None:
     data = {"methods": [GOOD_PATH], "sequences": ["data/sa"], "seeds": [0, 1, 2],
             "local": {"jobs": 2}, "out": "out"}
     sweep = _write(sweep_dir / "f.yaml", data)
@@ -203,7 +204,7 @@ def test_sweep_failures_conflicts_and_retries(sweep_dir, monkeypatch) -> None:
 
 
 @pytest.mark.slow
-def test_sweep_time_limit_and_dry_run(sweep_dir, monkeypatch) -> None:
+def test_sweep_time_limit_and_dry_run(sweep_dir: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     sweep = _write(sweep_dir / "t.yaml", {"methods": [GOOD_PATH],
                                           "sequences": ["data/sa"], "seeds": [0],
                                           "local": {"timeout_min": 0.15}, "out": "out"})
@@ -223,8 +224,9 @@ def test_sweep_time_limit_and_dry_run(sweep_dir, monkeypatch) -> None:
 
 
 @pytest.mark.slow
-def test_sweep_of_a_builtin_method_with_named_settings(tmp_path, monkeypatch, tiny_sequence
-                                                        ) -> None:
+def test_sweep_of_a_builtin_method_with_named_settings(tmp_path: Path,
+                                                       monkeypatch: pytest.MonkeyPatch,
+                                                       tiny_sequence: Path) -> None:
     """The real MonoGS-style method on the tiny plane sequence: overrides reach the run's
     resolved configuration, and the settings names label the leaderboard rows."""
     worker_env(monkeypatch)
@@ -253,7 +255,7 @@ def test_sweep_of_a_builtin_method_with_named_settings(tmp_path, monkeypatch, ti
     assert "Umeyama alignment is not possible" in md
 
 
-def test_ctrl_c_stops_workers_and_they_rerun(sweep_dir) -> None:
+def test_ctrl_c_stops_workers_and_they_rerun(sweep_dir: Path) -> None:
     sweep = _write(sweep_dir / "c.yaml", {"methods": [GOOD_PATH],
                                           "sequences": ["data/sa"], "seeds": [0],
                                           "out": "out"})

@@ -2,6 +2,7 @@
 time limit, the worker's log in the run folder, resume by skipping finished runs."""
 
 import json
+from pathlib import Path
 
 import pytest
 import yaml
@@ -14,7 +15,8 @@ submitit = pytest.importorskip("submitit")
 
 
 @pytest.mark.slow
-def test_slurm_backend_with_submitit_local_executor(tmp_path, monkeypatch) -> None:
+def test_slurm_backend_with_submitit_local_executor(tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+                                                    ) -> None:
     worker_env(monkeypatch)
     monkeypatch.chdir(tmp_path)
     make_sequence(tmp_path / "data", "sa", 6, 0)
@@ -44,7 +46,7 @@ def test_slurm_backend_with_submitit_local_executor(tmp_path, monkeypatch) -> No
 
 
 
-def test_slurm_backend_needs_submitit(tmp_path, monkeypatch) -> None:
+def test_slurm_backend_needs_submitit(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     import sys
 
     from egs_bench.errors import ConfigError

@@ -1,5 +1,7 @@
 """Sweep files: validation with one-line errors, expansion, stable names, hashes, shards, slots."""
 
+from pathlib import Path
+
 import pytest
 
 from egs_bench.errors import ConfigError, InputError
@@ -16,7 +18,7 @@ from tests.helpers.sweep_fixtures import GOOD_PATH, make_sequence
 
 
 @pytest.fixture(scope="module")
-def seqs(tmp_path_factory):
+def seqs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     root = tmp_path_factory.mktemp("seqs")
     return {"a": make_sequence(root, "sa", 6, 0), "b": make_sequence(root, "sb", 6, 1)}
 
@@ -36,13 +38,13 @@ def seqs(tmp_path_factory):
     ({"methods": ["egs"], "sequences": ["a"], "protocol": ["egs"]}, "unknown protocol ['egs']"),
     (["egs"], "must be a YAML mapping"),
 ])
-def test_sweep_file_errors_name_the_file(tmp_path, data, message) -> None:
+def test_sweep_file_errors_name_the_file(tmp_path: Path, data, message: str) -> None:
     with pytest.raises(InputError) as err:
         parse_sweep(data, tmp_path / "s.yaml")
     assert message in str(err.value) and str(tmp_path / "s.yaml") in str(err.value)
 
 
-def test_load_sweep_file_errors(tmp_path) -> None:
+def test_load_sweep_file_errors(tmp_path: Path) -> None:
     with pytest.raises(InputError, match="sweep file not found"):
         load_sweep(tmp_path / "nope.yaml")
     bad = tmp_path / "bad.yaml"
@@ -54,7 +56,7 @@ def test_load_sweep_file_errors(tmp_path) -> None:
     assert spec.seeds == (0,) and spec.presets == ("paper",) and str(spec.out) == "sweeps/ok"
 
 
-def test_expand_names_hashes_and_settings(tmp_path, seqs) -> None:
+def test_expand_names_hashes_and_settings(tmp_path: Path, seqs: dict[str, Path]) -> None:
     spec = parse_sweep({"methods": ["egs", "monogs"], "sequences": ["a", "b"], "seeds": [0, 1],
                         "preset": "cpu", "max_frames": 4,
                         "settings": {"base": {}, "low-d": {"lambda_d": 0.05}}}, "s.yaml")
@@ -87,7 +89,7 @@ def test_expand_names_hashes_and_settings(tmp_path, seqs) -> None:
                                                                  "sa/egs__paper/seed0"]
 
 
-def test_expand_rejects_bad_overrides_and_methods(tmp_path, seqs) -> None:
+def test_expand_rejects_bad_overrides_and_methods(tmp_path: Path, seqs: dict[str, Path]) -> None:
     bad = parse_sweep({"methods": ["egs"], "sequences": ["a"], "set": {"lambda_q": 1}},
                       tmp_path / "s.yaml")
     with pytest.raises(InputError, match="unknown SLAM option 'lambda_q'"):
@@ -105,7 +107,7 @@ def test_expand_rejects_bad_overrides_and_methods(tmp_path, seqs) -> None:
         expand(plugin, seqs, tmp_path)
 
 
-def test_shards_partition_the_runs(tmp_path, seqs) -> None:
+def test_shards_partition_the_runs(tmp_path: Path, seqs: dict[str, Path]) -> None:
     spec = parse_sweep({"methods": ["egs", "monogs", "egs-no-crf"], "sequences": ["a", "b"],
                         "seeds": [0, 1, 2]}, "s.yaml")
     runs = expand(spec, seqs, tmp_path)
@@ -118,7 +120,7 @@ def test_shards_partition_the_runs(tmp_path, seqs) -> None:
             parse_shard(text)
 
 
-def test_plan_slots_cpu_budget_and_gpus(tmp_path, seqs) -> None:
+def test_plan_slots_cpu_budget_and_gpus(tmp_path: Path, seqs: dict[str, Path]) -> None:
     spec = parse_sweep({"methods": ["egs"], "sequences": ["a", "b"], "seeds": [0, 1, 2]},
                        "s.yaml")
     runs = expand(spec, seqs, tmp_path)
@@ -137,7 +139,7 @@ def test_plan_slots_cpu_budget_and_gpus(tmp_path, seqs) -> None:
         plan_slots(cuda, LocalOptions(), gpus=[])
 
 
-def test_decide_from_the_run_folder(tmp_path, seqs) -> None:
+def test_decide_from_the_run_folder(tmp_path: Path, seqs: dict[str, Path]) -> None:
     import json
 
     from egs_bench.experiments.worker import (
@@ -203,8 +205,9 @@ def test_decide_from_the_run_folder(tmp_path, seqs) -> None:
     assert decide(run, force=True).action == RUN
 
 
-def test_a_repeated_sigterm_during_the_interruption_record_is_ignored(tmp_path, seqs,
-                                                                      monkeypatch) -> None:
+def test_a_repeated_sigterm_during_the_interruption_record_is_ignored(
+        tmp_path: Path, seqs: dict[str, Path], monkeypatch: pytest.MonkeyPatch
+) -> None:
     """The first SIGTERM arrives during the evaluation, a second one just as the worker writes
     its ``interrupted`` record (a process-group kill followed by the pool's own SIGTERM): the
     record must still be written, saying ``interrupted``."""
@@ -236,7 +239,7 @@ def test_a_repeated_sigterm_during_the_interruption_record_is_ignored(tmp_path, 
     assert saved["state"] == "interrupted" and saved["reason"] == "interrupted by SIGTERM"
 
 
-def test_a_running_row_says_how_far_the_method_got(tmp_path, seqs) -> None:
+def test_a_running_row_says_how_far_the_method_got(tmp_path: Path, seqs: dict[str, Path]) -> None:
     """A long run's summary row names its worker and the frame its method has reached (from
     the run's status heartbeat), so a sweep status shows progress, not only 'running'."""
     import json

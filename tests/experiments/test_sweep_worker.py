@@ -18,7 +18,7 @@ from tests.helpers.sweep_fixtures import GOOD_PATH, make_sequence
 
 
 @pytest.fixture(scope="module")
-def seqs(tmp_path_factory):
+def seqs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     root = tmp_path_factory.mktemp("seqs")
     return {"a": make_sequence(root, "sa", 6, 0)}
 
@@ -33,8 +33,10 @@ def _record(run: RunSpec) -> dict:
     return json.loads((Path(run.run_dir) / "sweep.json").read_text())
 
 
-def test_a_failed_evaluation_fails_the_run_and_retry_evaluates_again(tmp_path, seqs,
-                                                                    monkeypatch) -> None:
+def test_a_failed_evaluation_fails_the_run_and_retry_evaluates_again(tmp_path: Path,
+                                                                     seqs: dict[str, Path],
+                                                                     monkeypatch: pytest.MonkeyPatch
+                                                                     ) -> None:
     """A finished method whose evaluation raises is no result: state failed (exit code and
     summary say so, with the reason); it is kept like a failed run, and --retry-failed
     evaluates the kept outputs again instead of rerunning the method."""
@@ -42,7 +44,7 @@ def test_a_failed_evaluation_fails_the_run_and_retry_evaluates_again(tmp_path, s
 
     run = _run(seqs, tmp_path)
     with monkeypatch.context() as m:
-        def broken(*_args, **_kwargs):
+        def broken(*_args, **_kwargs) -> None:
             raise ValueError("degenerate alignment")
 
         m.setattr(evaluate, "evaluate_run", broken)
@@ -64,7 +66,8 @@ def test_a_failed_evaluation_fails_the_run_and_retry_evaluates_again(tmp_path, s
     assert _record(run)["evaluated"] == "egs" and "evaluation_error" not in _record(run)
 
 
-def test_a_timeout_during_the_evaluation_is_retried_as_an_evaluation(tmp_path, seqs) -> None:
+def test_a_timeout_during_the_evaluation_is_retried_as_an_evaluation(tmp_path: Path,
+                                                                     seqs: dict[str, Path]) -> None:
     """The pool's time limit struck after the method finished: the row says timeout, nothing is
     skipped as finished, and --retry-failed only evaluates."""
     run = _run(seqs, tmp_path)
@@ -82,7 +85,9 @@ def test_a_timeout_during_the_evaluation_is_retried_as_an_evaluation(tmp_path, s
     assert run_row(run)["state"] == "done" and run_row(run)["ate_cm"] > 0
 
 
-def test_a_changed_protocol_re_evaluates_without_rerunning_the_method(tmp_path, seqs) -> None:
+def test_a_changed_protocol_re_evaluates_without_rerunning_the_method(tmp_path: Path,
+                                                                      seqs: dict[str, Path]
+                                                                      ) -> None:
     """The protocol does not change what the method computes, so it is not part of the
     configuration hash; but a run evaluated under another protocol has no numbers for this
     one: the summary shows none, and the next invocation evaluates it (only)."""
@@ -115,7 +120,8 @@ def _kill_after_start(run: RunSpec) -> None:
     status.write_text(json.dumps({**json.loads(status.read_text()), "state": "running"}))
 
 
-def test_rerunning_a_killed_run_keeps_files_egs_bench_did_not_write(tmp_path, seqs) -> None:
+def test_rerunning_a_killed_run_keeps_files_egs_bench_did_not_write(tmp_path: Path,
+                                                                    seqs: dict[str, Path]) -> None:
     run = _run(seqs, tmp_path)
     assert worker.run_one(run, redirect=False) == worker.EXIT_DONE
     run_dir = Path(run.run_dir)
@@ -141,7 +147,8 @@ def test_rerunning_a_killed_run_keeps_files_egs_bench_did_not_write(tmp_path, se
     assert run_row(run)["state"] == "done" and run_row(run)["ate_cm"] > 0
 
 
-def test_rerunning_a_killed_run_replaces_only_what_the_tool_wrote(tmp_path, seqs) -> None:
+def test_rerunning_a_killed_run_replaces_only_what_the_tool_wrote(tmp_path: Path,
+                                                                  seqs: dict[str, Path]) -> None:
     run = _run(seqs, tmp_path)
     assert worker.run_one(run, redirect=False) == worker.EXIT_DONE
     before = sorted(p.relative_to(run.run_dir) for p in Path(run.run_dir).rglob("*"))
@@ -152,8 +159,9 @@ def test_rerunning_a_killed_run_replaces_only_what_the_tool_wrote(tmp_path, seqs
     assert after == before and _record(run)["state"] == "done"
 
 
-def test_the_lock_probe_creates_nothing_and_does_not_turn_a_worker_away(tmp_path, seqs
-                                                                         ) -> None:
+def test_the_lock_probe_creates_nothing_and_does_not_turn_a_worker_away(tmp_path: Path,
+                                                                        seqs: dict[str, Path]
+                                                                        ) -> None:
     run = _run(seqs, tmp_path / "not-there")
     assert not worker.lock_is_held(run)
     assert not (tmp_path / "not-there").exists()  # works on a read-only sweep folder too
@@ -174,7 +182,8 @@ def test_the_lock_probe_creates_nothing_and_does_not_turn_a_worker_away(tmp_path
         os.close(fd)
 
 
-def test_dry_run_and_status_generate_no_builtin_sequence(tmp_path, seqs, monkeypatch) -> None:
+def test_dry_run_and_status_generate_no_builtin_sequence(tmp_path: Path, seqs: dict[str, Path],
+                                                         monkeypatch: pytest.MonkeyPatch) -> None:
     data = tmp_path / "data"
     data.mkdir()
     monkeypatch.setenv("EGS_BENCH_DATA", str(data))
@@ -194,7 +203,8 @@ def test_dry_run_and_status_generate_no_builtin_sequence(tmp_path, seqs, monkeyp
         run_sweep(typo, out=tmp_path / "out2", dry_run=True, say=lambda m: None)
 
 
-def test_temporary_files_of_a_killed_writer_do_not_block_the_rerun(tmp_path, seqs) -> None:
+def test_temporary_files_of_a_killed_writer_do_not_block_the_rerun(tmp_path: Path,
+                                                                   seqs: dict[str, Path]) -> None:
     """SIGKILL between writing a file and renaming it leaves ``.<name>.<hex>.part<suffix>``
     (``fileio.atomic_path``): egs-bench's own, deleted with the run, not a user's file."""
     run = _run(seqs, tmp_path)
@@ -213,7 +223,8 @@ def test_temporary_files_of_a_killed_writer_do_not_block_the_rerun(tmp_path, seq
     assert not [p for p in run_dir.rglob("*.part*")]
 
 
-def test_symbolic_links_are_never_followed_when_a_run_is_replaced(tmp_path, seqs) -> None:
+def test_symbolic_links_are_never_followed_when_a_run_is_replaced(tmp_path: Path,
+                                                                  seqs: dict[str, Path]) -> None:
     run = _run(seqs, tmp_path)
     assert worker.run_one(run, redirect=False) == worker.EXIT_DONE
     run_dir = Path(run.run_dir)
@@ -241,7 +252,8 @@ def test_symbolic_links_are_never_followed_when_a_run_is_replaced(tmp_path, seqs
     assert "symbolic link" in _record(linked)["reason"]
 
 
-def test_metrics_replaced_or_removed_after_the_sweep_are_evaluated_again(tmp_path, seqs
+def test_metrics_replaced_or_removed_after_the_sweep_are_evaluated_again(tmp_path: Path,
+                                                                         seqs: dict[str, Path]
                                                                          ) -> None:
     """``egs-bench eval --protocol monogs`` on a sweep's run (or a deleted metrics.json) leaves
     the sweep without numbers for its protocol: evaluated again, not skipped as finished."""
@@ -259,7 +271,8 @@ def test_metrics_replaced_or_removed_after_the_sweep_are_evaluated_again(tmp_pat
     assert worker.decide(run).action == worker.SKIP and run_row(run)["ate_cm"] > 0
 
 
-def test_an_evaluation_failed_under_older_code_shows_failed(tmp_path, seqs) -> None:
+def test_an_evaluation_failed_under_older_code_shows_failed(tmp_path: Path, seqs: dict[str, Path]
+                                                            ) -> None:
     """Records written before evaluation failures failed the run: state done, an
     ``evaluation_error``, no ``evaluated``. The row and the exit status must agree with
     ``decide`` (kept as failed), not show done."""
@@ -275,7 +288,8 @@ def test_an_evaluation_failed_under_older_code_shows_failed(tmp_path, seqs) -> N
     assert row["state"] == "failed" and row["reason"] == "evaluation: ValueError: degenerate"
 
 
-def test_a_run_killed_at_its_time_limit_is_not_rerun_unasked(tmp_path, seqs) -> None:
+def test_a_run_killed_at_its_time_limit_is_not_rerun_unasked(tmp_path: Path, seqs: dict[str, Path]
+                                                             ) -> None:
     """SIGKILL at the time limit leaves status.json running under a timeout record: kept like
     a failed run (rerunning would hit the limit again), rerun with --retry-failed."""
     run = _run(seqs, tmp_path)

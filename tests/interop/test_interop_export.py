@@ -43,7 +43,7 @@ def seq(tiny_sequence: Path) -> Sequence:
 
 
 @pytest.fixture(scope="module")
-def tum_export(seq: Sequence, tmp_path_factory) -> Path:
+def tum_export(seq: Sequence, tmp_path_factory: pytest.TempPathFactory) -> Path:
     return export_sequence(seq, tmp_path_factory.mktemp("exp") / "tum", fmt="tum-rgbd").path
 
 
@@ -217,7 +217,8 @@ def test_output_safety(seq: Sequence, tmp_path: Path) -> None:
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]  # no temp leftovers
 
 
-def test_cli_export_and_errors(tiny_sequence: Path, tmp_path: Path, capsys) -> None:
+def test_cli_export_and_errors(tiny_sequence: Path, tmp_path: Path,
+                               capsys: pytest.CaptureFixture[str]) -> None:
     from egs_bench.cli import main
 
     assert main(["export", str(tiny_sequence), "-o", str(tmp_path / "o"), "--format", "tum-rgbd",
@@ -265,7 +266,8 @@ def test_export_refuses_a_bad_image(tiny_sequence: Path, tmp_path: Path, fmt: st
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]
 
 
-def test_cli_export_of_a_truncated_frame(tiny_sequence: Path, tmp_path: Path, capsys) -> None:
+def test_cli_export_of_a_truncated_frame(tiny_sequence: Path, tmp_path: Path,
+                                         capsys: pytest.CaptureFixture[str]) -> None:
     from egs_bench.cli import main
 
     src = _damaged_copy(tiny_sequence, tmp_path / "seq", "rgb", "truncated")

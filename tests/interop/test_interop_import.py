@@ -26,7 +26,7 @@ pytestmark = pytest.mark.filterwarnings("ignore:Input line .* contained no data:
 
 
 @pytest.fixture(scope="module")
-def seq_path(tmp_path_factory) -> Path:
+def seq_path(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """10 frames, 64x48, of the plane scene (30 fps, 15 ms exposures), with its ground truth
     replaced by a 6-DoF helix: the plane's straight line cannot be aligned (Umeyama needs a
     non-degenerate trajectory) and these tests only need poses, not matching images."""
@@ -49,7 +49,7 @@ def seq(seq_path: Path) -> Sequence:
 
 
 @pytest.fixture(scope="module")
-def export(seq: Sequence, tmp_path_factory) -> Path:
+def export(seq: Sequence, tmp_path_factory: pytest.TempPathFactory) -> Path:
     return export_sequence(seq, tmp_path_factory.mktemp("exp") / "tum", fmt="tum-rgbd").path
 
 
@@ -376,7 +376,8 @@ def test_import_safety_and_options(seq: Sequence, export: Path, tmp_path: Path) 
     assert run.sequence_path == seq.path.resolve()
 
 
-def test_cli_import_run(seq: Sequence, export: Path, tmp_path: Path, capsys) -> None:
+def test_cli_import_run(seq: Sequence, export: Path, tmp_path: Path,
+                        capsys: pytest.CaptureFixture[str]) -> None:
     from egs_bench.cli import main
 
     _orbslam_folder(tmp_path / "orb", seq)
@@ -416,7 +417,8 @@ def _truncate(path: Path) -> None:
     path.write_bytes(data[: len(data) // 2])
 
 
-def test_tum_import_validates_as_eval_would(seq: Sequence, tmp_path: Path, capsys) -> None:
+def test_tum_import_validates_as_eval_would(seq: Sequence, tmp_path: Path,
+                                            capsys: pytest.CaptureFixture[str]) -> None:
     """A missing or corrupt sequence folder, an estimate 100 s off the ground truth, renders
     of the wrong size or truncated: each is refused with one line naming the file, and no
     run folder is left (a retry needs no --overwrite)."""
@@ -459,7 +461,9 @@ def test_tum_import_validates_as_eval_would(seq: Sequence, tmp_path: Path, capsy
 
 
 def test_external_import_with_a_bad_render_leaves_nothing(seq: Sequence, export: Path,
-                                                          tmp_path: Path, capsys) -> None:
+                                                          tmp_path: Path,
+                                                          capsys: pytest.CaptureFixture[str]
+                                                          ) -> None:
     """A truncated Photo-SLAM render (decoded before anything is written) and a failure while
     writing (the staging folder is removed): neither leaves a folder that blocks a retry."""
     from egs_bench.cli import main
@@ -477,7 +481,7 @@ def test_external_import_with_a_bad_render_leaves_nothing(seq: Sequence, export:
     # a failure after the run folder was created (disk full while writing a render)
     from egs_bench.runs.folder import RunFolder
 
-    def full_disk(self, index, image):
+    def full_disk(self, index, image) -> None:
         raise OSError(28, "No space left on device")
 
     original = RunFolder.write_render

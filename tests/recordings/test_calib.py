@@ -57,7 +57,7 @@ def test_round_trip(tmp_path: Path) -> None:
     ({"time_offsets_us": {"imu": 5}}, "time_offsets_us: unknown keys imu"),
     ({"T_event_rgb": None}, "unknown keys: T_event_rgb"),
 ])
-def test_bad_calibration_names_file_and_problem(tmp_path: Path, change, message) -> None:
+def test_bad_calibration_names_file_and_problem(tmp_path: Path, change, message: str) -> None:
     with pytest.raises(InputError, match=message) as info:
         load_calib(_write(tmp_path, {**GOOD, **change}))
     assert str(info.value).startswith(str(tmp_path / "calib.yaml"))

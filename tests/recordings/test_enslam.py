@@ -76,12 +76,12 @@ def write_dev_reals(rig: Rig, root: Path) -> dict:
 
 
 @pytest.fixture(scope="module")
-def rig(tmp_path_factory) -> Rig:
+def rig(tmp_path_factory: pytest.TempPathFactory) -> Rig:
     return make_rig(tmp_path_factory.mktemp("rig"))
 
 
 @pytest.fixture(scope="module")
-def dev_reals(rig: Rig, tmp_path_factory) -> tuple[Path, dict, Path]:
+def dev_reals(rig: Rig, tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict, Path]:
     root = tmp_path_factory.mktemp("devreals") / "dorm1"
     expected = write_dev_reals(rig, root)
     calib = root.parent / "calib.yaml"  # the rig's: no event_camera (from intrinsic.yaml)
@@ -89,7 +89,8 @@ def dev_reals(rig: Rig, tmp_path_factory) -> tuple[Path, dict, Path]:
     return root, expected, calib
 
 
-def test_dev_reals_davis_frames_import_like_the_bag(rig: Rig, dev_reals, tmp_path: Path) -> None:
+def test_dev_reals_davis_frames_import_like_the_bag(rig: Rig, dev_reals: tuple[Path, dict, Path],
+                                                    tmp_path: Path) -> None:
     root, expected, calib = dev_reals
     truth = rig.truth
     exposure = int(truth.t_end_us[0] - truth.t_start_us[0])
@@ -120,7 +121,8 @@ def test_dev_reals_davis_frames_import_like_the_bag(rig: Rig, dev_reals, tmp_pat
                                                                     + 1))
 
 
-def test_dev_reals_realsense_frames_are_warped(dev_reals, tmp_path: Path) -> None:
+def test_dev_reals_realsense_frames_are_warped(dev_reals: tuple[Path, dict, Path], tmp_path: Path
+                                               ) -> None:
     """--frames rgbd: the RealSense colour images (80x60, the depth camera) are warped into the
     event camera through the depth; pixels with depth get the image's grey, the rest black."""
     root, _, calib_file = dev_reals
@@ -165,7 +167,8 @@ def _run(args: list[str], capsys) -> tuple[int, str]:
     return code, capsys.readouterr().err
 
 
-def test_bad_dev_reals_input_is_one_line(dev_reals, tmp_path: Path, capsys) -> None:
+def test_bad_dev_reals_input_is_one_line(dev_reals: tuple[Path, dict, Path], tmp_path: Path,
+                                         capsys: pytest.CaptureFixture[str]) -> None:
     root, _, calib = dev_reals
     base = ["--out", str(tmp_path / "o"), "--calib", str(calib), "--exposure-us", "5000",
             "--frame-stamp", "end"]

@@ -41,7 +41,7 @@ PRESET = "davis-realsense"
 
 
 @pytest.fixture(scope="module")
-def rig(tmp_path_factory) -> Rig:
+def rig(tmp_path_factory: pytest.TempPathFactory) -> Rig:
     return make_rig(tmp_path_factory.mktemp("rig"))
 
 
@@ -53,7 +53,7 @@ def _spec(rig: Rig, **kw) -> RecordingSpec:
 
 
 @pytest.fixture(scope="module")
-def imported(rig: Rig, tmp_path_factory) -> Path:
+def imported(rig: Rig, tmp_path_factory: pytest.TempPathFactory) -> Path:
     return import_recording(_spec(rig), tmp_path_factory.mktemp("imp") / "rig_seq",
                             progress=False)
 
@@ -235,7 +235,8 @@ def test_16_bit_depth_without_depth_scale(rig: Rig, tmp_path: Path) -> None:
     _only(tmp_path, {"calib.yaml"})
 
 
-def test_bad_sensor_option_is_one_line(rig: Rig, tmp_path: Path, capsys) -> None:
+def test_bad_sensor_option_is_one_line(rig: Rig, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+                                       ) -> None:
     code = main(["import-recording", "--out", str(tmp_path / "o"), "--events", str(rig.bag),
                  "--depth", str(rig.bag), "--gt", str(rig.bag), "--calib", str(rig.calib),
                  "--sensor", "lidar=Velodyne"])
@@ -263,7 +264,8 @@ def test_existing_output_is_not_replaced(rig: Rig, tmp_path: Path) -> None:
     assert (out / "notes.txt").read_text() == "mine"
 
 
-def test_cli_error_is_one_line(rig: Rig, tmp_path: Path, capsys) -> None:
+def test_cli_error_is_one_line(rig: Rig, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+                               ) -> None:
     code = main(["import-recording", "--out", str(tmp_path / "o"), "--events", str(rig.bag),
                  "--depth", str(rig.bag), "--gt", str(rig.bag), "--preset", PRESET,
                  "--calib", str(rig.calib),
@@ -403,7 +405,8 @@ def test_run_and_eval_on_imported_rig(imported: Path, tmp_path: Path) -> None:
 
 
 # ------------------------------------------------------------------ CLI helpers
-def test_make_calib_from_kalibr_and_presets_listing(tmp_path: Path, capsys) -> None:
+def test_make_calib_from_kalibr_and_presets_listing(tmp_path: Path,
+                                                    capsys: pytest.CaptureFixture[str]) -> None:
     kalibr = tmp_path / "camchain.yaml"
     kalibr.write_text(yaml.safe_dump({"cam0": {
         "camera_model": "pinhole", "intrinsics": [226.4, 226.2, 173.6, 133.7],

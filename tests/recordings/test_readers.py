@@ -243,7 +243,9 @@ def test_missing_hdf5_filter_is_named(tmp_path: Path) -> None:
     assert "corrupt" not in str(info.value)
 
 
-def test_a_bag_without_rosbags_installed_is_one_line_naming_the_extra(tmp_path, monkeypatch):
+def test_a_bag_without_rosbags_installed_is_one_line_naming_the_extra(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     import sys
 
     from egs_bench.errors import ConfigError
@@ -256,7 +258,8 @@ def test_a_bag_without_rosbags_installed_is_one_line_naming_the_extra(tmp_path, 
         BagFile(bag)
 
 
-def test_a_filter_hdf5plugin_provides_names_the_extra(tmp_path, monkeypatch):
+def test_a_filter_hdf5plugin_provides_names_the_extra(tmp_path: Path,
+                                                      monkeypatch: pytest.MonkeyPatch) -> None:
     from egs_bench.datasets.events import _read_error
 
     path = tmp_path / "events.h5"

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 import torch
@@ -14,7 +16,7 @@ from tests.helpers.cli import assert_cli_error, run_cli
 
 
 @pytest.fixture
-def plane_ply(tmp_path):
+def plane_ply(tmp_path: Path) -> Path:
     intr = Intrinsics(30.0, 30.0, 16, 12, 32, 24)
     gmap = GaussianMap.empty()
     gmap.add_from_depth(np.full((24, 32, 3), 0.5, np.float32), np.full((24, 32), 2.0, np.float32),
@@ -25,7 +27,8 @@ def plane_ply(tmp_path):
     return ply
 
 
-def test_render_map_writes_png(tmp_path, plane_ply, capsys):
+def test_render_map_writes_png(tmp_path: Path, plane_ply: Path, capsys: pytest.CaptureFixture[str]
+                               ) -> None:
     out = tmp_path / "v.png"
     code, _, err = run_cli(capsys, "render-map", plane_ply, "-o", out, "--width", "48",
                            "--height", "32", "--pose", "0 0 0 0 0 0 1")
@@ -41,8 +44,9 @@ def test_render_map_writes_png(tmp_path, plane_ply, capsys):
     (["{ply}", "--backend", "cuda-magic"], 2,
      "'--backend': Value error, 'cuda-magic' is not one of 'auto', 'numba', 'gsplat'"),
 ])
-def test_render_map_reports_bad_input_in_one_line(tmp_path, plane_ply, capsys, argv, code,
-                                                  message):
+def test_render_map_reports_bad_input_in_one_line(tmp_path: Path, plane_ply: Path,
+                                                  capsys: pytest.CaptureFixture[str], argv,
+                                                  code: int, message: str) -> None:
     out = tmp_path / "v.png"
     argv = [a.replace("{tmp}", str(tmp_path)).replace("{ply}", str(plane_ply)) for a in argv]
     got, _, err = run_cli(capsys, "render-map", *argv, "-o", out)

@@ -19,7 +19,7 @@ def _both(scene, **kw):
     return rasterize(**scene, backend="reference", **kw), rasterize(**scene, backend="numba", **kw)
 
 
-def _assert_same(ref, out, atol):
+def _assert_same(ref, out, atol) -> None:
     for f in FIELDS:
         torch.testing.assert_close(getattr(out, f), getattr(ref, f), atol=atol, rtol=0, msg=f)
     assert torch.equal(out.visibility, ref.visibility)
@@ -27,14 +27,14 @@ def _assert_same(ref, out, atol):
 
 
 @pytest.mark.parametrize("n,c,seed", [(150, 1, 0), (300, 3, 1), (40, 2, 2)])
-def test_numba_matches_reference_float64(n, c, seed):
+def test_numba_matches_reference_float64(n: int, c: int, seed: int) -> None:
     scene = random_scene(n=n, c=c, seed=seed)
     ref, out = _both(scene)
     assert 0.05 < ref.alpha.mean() < 0.999  # a scene where compositing actually matters
     _assert_same(ref, out, atol=1e-12)
 
 
-def test_numba_matches_reference_dense_scene_with_stop_rule():
+def test_numba_matches_reference_dense_scene_with_stop_rule() -> None:
     # Many opaque, large Gaussians: T hits the 1e-4 stop and alpha clamps at 0.99.
     scene = random_scene(n=400, c=2, seed=3, scale_range=(0.1, 0.4))
     scene["opacities"] = torch.full_like(scene["opacities"], 0.995)
@@ -44,7 +44,7 @@ def test_numba_matches_reference_dense_scene_with_stop_rule():
     _assert_same(ref, out, atol=1e-12)
 
 
-def test_numba_matches_reference_float32():
+def test_numba_matches_reference_float32() -> None:
     scene = random_scene(n=300, c=3, seed=4, dtype=torch.float32)
     ref, out = _both(scene)
     assert out.rgb.dtype == torch.float32
@@ -52,7 +52,7 @@ def test_numba_matches_reference_float32():
         torch.testing.assert_close(getattr(out, f), getattr(ref, f), atol=2e-5, rtol=1e-5)
 
 
-def test_single_gaussian_matches_closed_form():
+def test_single_gaussian_matches_closed_form() -> None:
     # Isotropic Gaussian on the optical axis: Sigma_2d = (f s / z)^2 I + EPS2D I.
     f, z, s, o = 40.0, 2.0, 0.05, 0.8
     means = torch.tensor([[0.0, 0.0, z]], dtype=torch.float64)
@@ -77,7 +77,7 @@ def test_single_gaussian_matches_closed_form():
     assert abs(int(out.radii[0, 0]) - math.ceil(r)) <= 1
 
 
-def test_projection_matches_pinhole_and_autograd_jacobian():
+def test_projection_matches_pinhole_and_autograd_jacobian() -> None:
     scene = random_scene(n=20, c=2, seed=5)
     proj = project_gaussians(scene["means"], scene["quats"], scene["scales"],
                              scene["opacities"], scene["viewmats"], scene["Ks"], 32, 24)
@@ -101,7 +101,7 @@ def test_projection_matches_pinhole_and_autograd_jacobian():
 
 
 @pytest.mark.parametrize("c", [1, 12])
-def test_batch_equals_single_calls(c):
+def test_batch_equals_single_calls(c: int) -> None:
     scene = random_scene(n=120, c=c, seed=6, dtype=torch.float32)
     batched = rasterize(**scene)
     for k in range(c):
@@ -112,7 +112,7 @@ def test_batch_equals_single_calls(c):
 
 
 @pytest.mark.parametrize("backend", ["numba", "reference"])
-def test_empty_scene_gives_background(backend):
+def test_empty_scene_gives_background(backend: str) -> None:
     scene = random_scene(n=0, c=2, seed=0)
     bg = torch.tensor([[0.1, 0.2, 0.3], [1.0, 0.0, 0.5]], dtype=torch.float64)
     out = rasterize(**scene, backgrounds=bg, backend=backend)
@@ -122,7 +122,7 @@ def test_empty_scene_gives_background(backend):
 
 
 @pytest.mark.parametrize("backend", ["numba", "reference"])
-def test_behind_camera_and_off_image_gaussians_contribute_nothing(backend):
+def test_behind_camera_and_off_image_gaussians_contribute_nothing(backend: str) -> None:
     scene = random_scene(n=60, c=1, seed=7)
     base = rasterize(**scene, backend=backend)
     extra = torch.tensor([[0.0, 0.0, -1.0], [0.0, 0.0, 0.005], [50.0, 0.0, 2.0],
@@ -140,7 +140,7 @@ def test_behind_camera_and_off_image_gaussians_contribute_nothing(backend):
 
 
 @pytest.mark.parametrize("backend", ["numba", "reference"])
-def test_degenerate_scales_stay_finite(backend):
+def test_degenerate_scales_stay_finite(backend: str) -> None:
     scene = random_scene(n=50, c=2, seed=8)
     scene["scales"][:10] = 0.0  # flat/point Gaussians: only the 0.3 px^2 dilation remains
     scene["scales"][10:13] = 1e4  # huge ones
@@ -154,14 +154,14 @@ def test_degenerate_scales_stay_finite(backend):
         _assert_same(ref, out, atol=1e-10)
 
 
-def test_deterministic():
+def test_deterministic() -> None:
     scene = random_scene(n=300, c=3, seed=9, dtype=torch.float32)
     a, b = rasterize(**scene), rasterize(**scene)
     for f in (*FIELDS, "visibility", "radii"):
         assert torch.equal(getattr(a, f), getattr(b, f))
 
 
-def test_visibility_means_touched_above_half_transmittance():
+def test_visibility_means_touched_above_half_transmittance() -> None:
     # Two identical opaque Gaussians, one behind the other: the front one takes T to 0.1, so
     # the back one contributes only while T < 0.5 and is not "touched".
     means = torch.tensor([[0.0, 0.0, 2.0], [0.0, 0.0, 3.0]], dtype=torch.float64)
@@ -176,7 +176,7 @@ def test_visibility_means_touched_above_half_transmittance():
         assert (out.depth[0, 12, 16] > 0.9 * 2.0)
 
 
-def test_bad_inputs_are_programming_errors():
+def test_bad_inputs_are_programming_errors() -> None:
     """Wrong shapes or dtypes come from calling code, not from a user: ValueError (reported by
     the CLI as an internal error), never ConfigError."""
     scene = random_scene(n=5, c=2)

@@ -37,7 +37,7 @@ def _cotangent(scene, seed, dtype):
 
 @pytest.mark.parametrize("n,c,seed,opaque", [(200, 3, 0, False), (300, 2, 1, True),
                                               (60, 1, 2, False)])
-def test_gradients_match_reference_float64(n, c, seed, opaque):
+def test_gradients_match_reference_float64(n: int, c: int, seed: int, opaque: bool) -> None:
     scene = random_scene(n=n, c=c, seed=seed, scale_range=(0.05, 0.3) if opaque else
                          (0.02, 0.25))
     if opaque:  # clamped alphas and the early stop both occur
@@ -52,7 +52,7 @@ def test_gradients_match_reference_float64(n, c, seed, opaque):
                                    msg=k)
 
 
-def test_gradients_match_reference_float32():
+def test_gradients_match_reference_float32() -> None:
     scene = random_scene(n=200, c=3, seed=3, dtype=torch.float32)
     cot = _cotangent(scene, 13, torch.float32)
     ref = _grads(scene, "reference", cot)
@@ -63,7 +63,7 @@ def test_gradients_match_reference_float32():
 
 
 @pytest.mark.parametrize("backend", ["numba", "reference"])
-def test_pose_gradient_matches_finite_differences(backend):
+def test_pose_gradient_matches_finite_differences(backend: str) -> None:
     # se(3) perturbation of each camera, left-multiplied on the world-to-camera matrix (the
     # tracking parametrisation); central differences in float64.
     scene = random_scene(n=40, c=2, seed=4, opacity_scale=0.8)
@@ -91,7 +91,7 @@ def test_pose_gradient_matches_finite_differences(backend):
     torch.testing.assert_close(analytic, numeric, rtol=1e-5, atol=1e-5)
 
 
-def test_pose_only_backward_leaves_map_without_grad():
+def test_pose_only_backward_leaves_map_without_grad() -> None:
     scene = random_scene(n=100, c=2, seed=5, dtype=torch.float32)
     vm = scene["viewmats"].clone().requires_grad_(True)
     out = rasterize(**dict(scene, viewmats=vm))
@@ -100,7 +100,7 @@ def test_pose_only_backward_leaves_map_without_grad():
     assert scene["means"].grad is None
 
 
-def test_gradients_deterministic():
+def test_gradients_deterministic() -> None:
     scene = random_scene(n=300, c=3, seed=6, dtype=torch.float32)
     cot = _cotangent(scene, 16, torch.float32)
     a, b = _grads(scene, "numba", cot), _grads(scene, "numba", cot)
@@ -108,7 +108,7 @@ def test_gradients_deterministic():
         assert torch.equal(a[k], b[k]), k
 
 
-def test_gaussians_out_of_view_get_zero_gradient():
+def test_gaussians_out_of_view_get_zero_gradient() -> None:
     scene = random_scene(n=30, c=1, seed=7)
     scene["means"][0] = torch.tensor([0.0, 0.0, -2.0], dtype=torch.float64)  # behind
     scene["means"][1] = torch.tensor([80.0, 0.0, 2.0], dtype=torch.float64)  # off to the side

@@ -12,7 +12,7 @@ from tests.helpers.render_scenes import leaf_copy, random_scene
 HAVE_CUDA = torch.cuda.is_available()
 
 
-def test_gsplat_backend_rejects_cpu_tensors_or_missing_package():
+def test_gsplat_backend_rejects_cpu_tensors_or_missing_package() -> None:
     """Without gsplat installed, asking for it is a user-fixable ConfigError; with it, CPU
     tensors are a programming error (ValueError, as CUDA tensors are in the numba backend)."""
     import importlib.util
@@ -28,7 +28,7 @@ def test_gsplat_backend_rejects_cpu_tensors_or_missing_package():
 
 @pytest.mark.cuda
 @pytest.mark.skipif(not HAVE_CUDA, reason="needs a CUDA GPU")
-def test_gsplat_matches_numba_forward_and_gradients():
+def test_gsplat_matches_numba_forward_and_gradients() -> None:
     pytest.importorskip("gsplat")
     # Moderate opacities: gsplat clamps alpha at 0.999 instead of 0.99, so keep o*G < 0.99.
     scene = random_scene(n=300, c=3, seed=1, dtype=torch.float32, opacity_scale=0.9)

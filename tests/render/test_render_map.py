@@ -1,6 +1,8 @@
-"""GaussianMap: insertion from depth, pruning, .ply round trip, demo render."""
+"""GaussianMap: insertion from depth, pruning, .ply round trip."""
 
 from __future__ import annotations
+
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -29,7 +31,7 @@ def _pose():
     return T
 
 
-def test_add_from_depth_full_resolution_geometry_colour_and_scale():
+def test_add_from_depth_full_resolution_geometry_colour_and_scale() -> None:
     rgb, depth, intr = _plane()
     T = _pose()
     m = GaussianMap.empty(torch.float64)
@@ -52,7 +54,7 @@ def test_add_from_depth_full_resolution_geometry_colour_and_scale():
     assert (m.keyframe_ids == 3).all()
 
 
-def test_add_from_depth_downsampling_is_random_and_seeded():
+def test_add_from_depth_downsampling_is_random_and_seeded() -> None:
     rgb, depth, intr = _plane()
     valid = int((depth > 0).sum())
     a, b, c = GaussianMap.empty(), GaussianMap.empty(), GaussianMap.empty()
@@ -67,7 +69,7 @@ def test_add_from_depth_downsampling_is_random_and_seeded():
     assert a.add_from_depth(rgb, np.zeros_like(depth), intr, np.eye(4)) == 0
 
 
-def test_add_from_depth_rejects_srgb_uint8_and_wrong_shapes():
+def test_add_from_depth_rejects_srgb_uint8_and_wrong_shapes() -> None:
     rgb, depth, intr = _plane()
     m = GaussianMap.empty()
     with pytest.raises(ValueError, match="linear"):
@@ -76,7 +78,7 @@ def test_add_from_depth_rejects_srgb_uint8_and_wrong_shapes():
         m.add_from_depth(rgb[:-1], depth[:-1], intr, np.eye(4))
 
 
-def test_rendering_the_inserted_map_reproduces_the_depth():
+def test_rendering_the_inserted_map_reproduces_the_depth() -> None:
     rgb, depth, intr = _plane(z=3.0)
     m = GaussianMap.empty()
     m.add_from_depth(rgb, depth, intr, np.eye(4), downsample=1, point_size=1.0, opacity=0.99)
@@ -88,7 +90,7 @@ def test_rendering_the_inserted_map_reproduces_the_depth():
                                rtol=0)
 
 
-def test_prune_removes_masked_gaussians():
+def test_prune_removes_masked_gaussians() -> None:
     rgb, depth, intr = _plane()
     m = GaussianMap.empty()
     m.add_from_depth(rgb, depth, intr, np.eye(4), downsample=1)
@@ -101,7 +103,7 @@ def test_prune_removes_masked_gaussians():
         m.prune(torch.zeros(len(m)))
 
 
-def test_ply_round_trip_and_standard_layout(tmp_path):
+def test_ply_round_trip_and_standard_layout(tmp_path: Path) -> None:
     rgb, depth, intr = _plane()
     m = GaussianMap.empty()
     m.add_from_depth(rgb * 2.0, depth, intr, _pose(), downsample=2)  # HDR colours survive
@@ -121,7 +123,7 @@ def test_ply_round_trip_and_standard_layout(tmp_path):
                                (m.colors[:, 0].numpy() - 0.5) / SH_C0, rtol=1e-5, atol=1e-5)
 
 
-def test_load_ply_errors_name_the_file(tmp_path):
+def test_load_ply_errors_name_the_file(tmp_path: Path) -> None:
     bad = tmp_path / "bad.ply"
     bad.write_text("not a ply")
     with pytest.raises(InputError, match="bad.ply"):
@@ -135,19 +137,7 @@ def test_load_ply_errors_name_the_file(tmp_path):
         load_ply(tmp_path / "points.ply")
 
 
-def test_demo_render_writes_png(tmp_path):
-    from egs_bench.images import read_ldr_image
-    from egs_bench.render.demo import render_demo
-
-    out = tmp_path / "demo.png"
-    gmap = render_demo(out, width=64, height=40)
-    img = read_ldr_image(out)
-    assert img.shape == (40, 64 * 4 + 12, 3) and len(gmap) > 500
-    # the re-render of the input view resembles the input (mean abs error of 8-bit sRGB)
-    assert np.abs(img[:, :64].astype(float) - img[:, 68:132]).mean() < 25
-
-
-def test_clone_and_to_are_detached_copies():
+def test_clone_and_to_are_detached_copies() -> None:
     rgb, depth, intr = _plane()
     m = GaussianMap.empty()
     m.add_from_depth(rgb, depth, intr, np.eye(4), downsample=4, keyframe_id=2)

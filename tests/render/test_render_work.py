@@ -51,7 +51,7 @@ def _footprint_pixels() -> int:
     return total
 
 
-def test_counts_match_the_analytic_footprints():
+def test_counts_match_the_analytic_footprints() -> None:
     work = RenderWork()
     with counting(work):
         out = rasterize(*_scene(), W, H, backend="numba")
@@ -65,13 +65,13 @@ def test_counts_match_the_analytic_footprints():
     assert work.blends_bwd == expected  # the backward differentiates the same blends
 
 
-def test_nothing_is_booked_outside_a_counting_block():
+def test_nothing_is_booked_outside_a_counting_block() -> None:
     work = RenderWork()
     rasterize(*_scene(), W, H, backend="numba")
     assert work == RenderWork()
 
 
-def test_two_cameras_and_nested_records():
+def test_two_cameras_and_nested_records() -> None:
     means, quats, scales, opac, colors, view, K = _scene()
     outer, inner = RenderWork(), RenderWork()
     with counting(outer):
@@ -84,7 +84,7 @@ def test_two_cameras_and_nested_records():
     assert inner.cameras == 1 and inner.blends_fwd == _footprint_pixels()
 
 
-def test_reference_backend_says_it_does_not_count_blends():
+def test_reference_backend_says_it_does_not_count_blends() -> None:
     work = RenderWork()
     with counting(work):
         rasterize(*_scene(), W, H, backend="reference")
@@ -93,7 +93,7 @@ def test_reference_backend_says_it_does_not_count_blends():
 
 
 @pytest.mark.parametrize("scale", [0.5, 0.25])
-def test_scaled_dilation_keeps_the_footprint_in_scene_units(scale):
+def test_scaled_dilation_keeps_the_footprint_in_scene_units(scale: float) -> None:
     """At ``scale`` x the resolution with ``eps2d = EPS2D scale^2`` a Gaussian covers
     ``scale^2`` of the pixels it covers at full resolution (to the rounding of a disk)."""
     means, quats, scales, opac, colors, view, K = _scene()

@@ -27,7 +27,7 @@ from tests.helpers.sweep_fixtures import BAD, GOOD, GOOD_PATH, make_sequence
 
 
 @pytest.fixture(scope="module")
-def runs_root(tmp_path_factory) -> Path:
+def runs_root(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """good x 2 seeds, bad x 2 seeds on one sequence, a failed run, a corrupt metrics.json."""
     root = tmp_path_factory.mktemp("report")
     seq = Sequence.open(make_sequence(root / "data", "sa", 8, 0))
@@ -59,7 +59,7 @@ class _Page(HTMLParser):
         self._cell: list[str] | None = None
         self.feed(path.read_text())
 
-    def handle_starttag(self, tag, attrs):
+    def handle_starttag(self, tag, attrs) -> None:
         a = dict(attrs)
         if tag == "table":
             self._table = a.get("id", "")
@@ -73,14 +73,14 @@ class _Page(HTMLParser):
         elif tag == "a":
             self.links.append(a["href"])
 
-    def handle_endtag(self, tag):
+    def handle_endtag(self, tag) -> None:
         if tag in ("td", "th") and self._cell is not None and self._table is not None:
             self.tables[self._table][-1].append("".join(self._cell).strip())
             self._cell = None
         elif tag == "table":
             self._table = None
 
-    def handle_data(self, data):
+    def handle_data(self, data) -> None:
         if self._cell is not None:
             self._cell.append(data)
 
@@ -271,7 +271,7 @@ def test_side_report_warns_in_one_line_and_keeps_the_folder(runs_root: Path,
 
 
 def test_cli_on_a_run_folder_and_a_runs_root(runs_root: Path, tmp_path: Path,
-                                             capsys) -> None:
+                                             capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["report", str(runs_root / "sa/bad/seed0"), "-o", str(tmp_path / "one")]) == 0
     assert len(list((tmp_path / "one" / "runs").glob("*.html"))) == 1
     assert main(["report", str(runs_root), "-o", str(tmp_path / "all"), "--no-eval"]) == 0

@@ -21,7 +21,9 @@ from __future__ import annotations
 
 import dataclasses
 import json
+from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -40,7 +42,7 @@ PLANTED_MARGIN_DB = 10.0
 
 
 @pytest.fixture(scope="module")
-def chromium():
+def chromium() -> Iterator[Any]:
     missing = scale.chromium_missing()
     if missing:
         pytest.skip(f"headless Chromium unavailable: {missing}")
@@ -49,7 +51,7 @@ def chromium():
 
 
 @pytest.fixture(scope="module")
-def sweep_out(tmp_path_factory) -> Path:
+def sweep_out(tmp_path_factory: pytest.TempPathFactory) -> Path:
     from egs_bench.datasets.registry import BUILTIN_SEQUENCES
     from egs_bench.datasets.synthetic import make_synthetic
     from egs_bench.experiments.spec import load_sweep
@@ -107,7 +109,7 @@ def _column(driver, table: str, index: int) -> list[str]:
 
 
 @pytest.mark.slow
-def test_report_of_a_real_sweep_in_chromium(sweep_out: Path, chromium) -> None:
+def test_report_of_a_real_sweep_in_chromium(sweep_out: Path, chromium: Any) -> None:
     from selenium.webdriver.common.by import By
 
     report = sweep_out / "report"
@@ -206,7 +208,7 @@ def _view_psnrs(driver, run: Path, frames: list[int], out: Path,
 
 
 @pytest.mark.slow
-def test_run_view_matches_render_map(sweep_out: Path, chromium, tmp_path: Path) -> None:
+def test_run_view_matches_render_map(sweep_out: Path, chromium: Any, tmp_path: Path) -> None:
     from selenium.webdriver.common.by import By
 
     from egs_bench.images import read_ldr_image
@@ -297,7 +299,7 @@ def test_run_view_matches_render_map(sweep_out: Path, chromium, tmp_path: Path) 
 
 
 @pytest.mark.slow
-def test_sequence_view_toggles_each_trajectory(sweep_out: Path, chromium) -> None:
+def test_sequence_view_toggles_each_trajectory(sweep_out: Path, chromium: Any) -> None:
     from selenium.webdriver.common.by import By
 
     page = sweep_out / "report" / "sequences" / "demo.html"

@@ -1,5 +1,6 @@
 import shutil
 import subprocess
+from pathlib import Path
 
 import pytest
 import yaml
@@ -17,7 +18,7 @@ def _git(repo, *args: str) -> str:
 
 
 @needs_git
-def test_commit_and_modified_flag_of_a_checkout(tmp_path) -> None:
+def test_commit_and_modified_flag_of_a_checkout(tmp_path: Path) -> None:
     repo = tmp_path / "repo"
     pkg = repo / "pkg"
     pkg.mkdir(parents=True)
@@ -45,20 +46,20 @@ def test_commit_and_modified_flag_of_a_checkout(tmp_path) -> None:
 
 
 @needs_git
-def test_outside_a_checkout_there_is_no_revision(tmp_path) -> None:
+def test_outside_a_checkout_there_is_no_revision(tmp_path: Path) -> None:
     (tmp_path / "site-packages").mkdir()
     provenance._code_revision_cached.cache_clear()
     assert code_revision(tmp_path / "site-packages") is None
 
 
-def test_without_git_there_is_no_revision(tmp_path, monkeypatch) -> None:
+def test_without_git_there_is_no_revision(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setenv("PATH", str(tmp_path))  # no git executable on the path
     provenance._code_revision_cached.cache_clear()
     assert code_revision(tmp_path) is None
     provenance._code_revision_cached.cache_clear()
 
 
-def test_run_yaml_records_the_code_revision(tmp_path) -> None:
+def test_run_yaml_records_the_code_revision(tmp_path: Path) -> None:
     provenance._code_revision_cached.cache_clear()
     expected = code_revision()
     RunFolder.create(tmp_path / "r", method="m", sequence_name="s", sequence_path=tmp_path)

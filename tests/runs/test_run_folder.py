@@ -14,7 +14,7 @@ def _poses(n: int) -> np.ndarray:
     return pose_from_tq(t, np.tile([0.0, 0.0, 0.0, 1.0], (n, 1)))
 
 
-def test_run_folder_roundtrip(tmp_path) -> None:
+def test_run_folder_roundtrip(tmp_path: Path) -> None:
     run = RunFolder.create(tmp_path / "r", method="egs", sequence_name="office0",
                            sequence_path=tmp_path / "seq", config={"lr": np.float32(0.5)})
     assert run.read_status().state == "running"
@@ -44,7 +44,7 @@ def test_run_folder_roundtrip(tmp_path) -> None:
     assert find_runs(tmp_path) == [tmp_path / "r"]
 
 
-def test_run_folder_failure_guard_and_overwrite(tmp_path) -> None:
+def test_run_folder_failure_guard_and_overwrite(tmp_path: Path) -> None:
     run = RunFolder.create(tmp_path / "r", method="m", sequence_name="s", sequence_path=tmp_path)
     with pytest.raises(RuntimeError), run.failure_guard():
         raise RuntimeError("diverged at frame 7")
@@ -57,7 +57,7 @@ def test_run_folder_failure_guard_and_overwrite(tmp_path) -> None:
     assert RunFolder.open(tmp_path / "r").read_status().state == "running"
 
 
-def test_run_folder_bad_inputs(tmp_path) -> None:
+def test_run_folder_bad_inputs(tmp_path: Path) -> None:
     with pytest.raises(InputError, match="run folder not found"):
         RunFolder.open(tmp_path / "nope")
     (tmp_path / "empty").mkdir()
@@ -73,7 +73,7 @@ def test_run_folder_bad_inputs(tmp_path) -> None:
         run.read_status()
 
 
-def test_signal_surfacing_as_a_numba_system_error_marks_the_run_interrupted(tmp_path) -> None:
+def test_signal_surfacing_as_a_numba_system_error_marks_the_run_interrupted(tmp_path: Path) -> None:
     """A SIGTERM that arrived while numba ran ``bin_tiles`` stopped a sweep's run with
     ``SystemError: CPUDispatcher(...) returned a result with an exception set``, the
     interruption being its cause, and the run read ``failed`` (a sweep keeps those). It must
@@ -89,7 +89,7 @@ def test_signal_surfacing_as_a_numba_system_error_marks_the_run_interrupted(tmp_
     assert status.state == "interrupted" and status.reason == "interrupted by SIGTERM"
 
 
-def test_signal_after_mark_done_keeps_the_run_done(tmp_path) -> None:
+def test_signal_after_mark_done_keeps_the_run_done(tmp_path: Path) -> None:
     """A SIGTERM that lands after ``mark_done`` but inside ``failure_guard`` (a sweep's kill
     arriving while the worker leaves the block) propagates but leaves the run ``done``: its
     outputs are complete, and an ``interrupted`` status would make a sweep compute it again."""

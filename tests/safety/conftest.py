@@ -13,7 +13,7 @@ from egs_bench.runs.folder import RunFolder
 
 
 @pytest.fixture(scope="session")
-def room_sequence(tmp_path_factory) -> Path:
+def room_sequence(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """5 frames, 48x32, of the synthetic office: a 3-D camera path (the plane sequence moves
     along a line, on which SE(3) alignment is degenerate). Read-only."""
     from egs_bench.datasets.synthetic import make_synthetic

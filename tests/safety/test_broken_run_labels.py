@@ -19,7 +19,8 @@ CONFIG = {"method": "gt", "preset": "cpu", "device": "cpu", "seed": 0,
 
 
 @pytest.fixture
-def root_with_a_broken_run(done_run: RunFolder, tmp_path: Path, request) -> Path:
+def root_with_a_broken_run(done_run: RunFolder, tmp_path: Path, request: pytest.FixtureRequest
+                           ) -> Path:
     root = tmp_path / "root"
     for name in ("good", "bad"):
         shutil.copytree(done_run.path, root / name)
@@ -32,7 +33,8 @@ pytestmark = pytest.mark.parametrize("root_with_a_broken_run", ["status.json", "
                                      indirect=True)
 
 
-def test_leaderboard_labels_only_the_broken_run(root_with_a_broken_run, capsys):
+def test_leaderboard_labels_only_the_broken_run(root_with_a_broken_run: Path,
+                                                capsys: pytest.CaptureFixture[str]) -> None:
     code, out, err = run_cli(capsys, "leaderboard", root_with_a_broken_run, "--metrics", "ate")
     assert code == 0, err
     rows = [line.split("|")[1].strip() for line in out.splitlines()
@@ -42,15 +44,18 @@ def test_leaderboard_labels_only_the_broken_run(root_with_a_broken_run, capsys):
     assert f"{root_with_a_broken_run.name}/bad/" in out  # the broken run is footnoted
 
 
-def test_report_has_no_settings_columns_from_a_broken_run(root_with_a_broken_run, tmp_path,
-                                                          capsys):
+def test_report_has_no_settings_columns_from_a_broken_run(root_with_a_broken_run: Path,
+                                                          tmp_path: Path,
+                                                          capsys: pytest.CaptureFixture[str]
+                                                          ) -> None:
     code, _, err = run_cli(capsys, "report", root_with_a_broken_run, "-o", tmp_path / "rep")
     assert code == 0, err
     page = (tmp_path / "rep" / "index.html").read_text()
     assert "lambda_d" not in page and "device=" not in page
 
 
-def test_paper_tables_headers_do_not_list_settings(root_with_a_broken_run, tmp_path, capsys):
+def test_paper_tables_headers_do_not_list_settings(root_with_a_broken_run: Path, tmp_path: Path,
+                                                   capsys: pytest.CaptureFixture[str]) -> None:
     code, _, err = run_cli(capsys, "paper-tables", root_with_a_broken_run, "--tables", "ate",
                            "-o", tmp_path / "tables")
     assert code == 0, err

@@ -22,6 +22,7 @@ import pytest
 
 from egs_bench.errors import UnwritableOutputError
 from egs_bench.fileio import DISK_FULL, HDF5Output, write_text_atomic
+from egs_bench.runs.folder import RunFolder
 from tests.helpers.cli import assert_cli_error, run_cli
 from tests.helpers.safety_helpers import QUICK_RUN, REPO_ROOT
 
@@ -97,7 +98,9 @@ _OUTPUT = {"export-map": "m.ply", "render-map": "v.png", "show": "s.png",
 @pytest.mark.parametrize("name", ["make-synthetic", "export", "export-map", "render-map",
                                   "show", "leaderboard", "regress", "ate", "make-calib",
                                   "report", "import-run", "run"])
-def test_a_full_disk_is_named_in_one_line(name, tmpfs, room_sequence, done_run, capsys):
+def test_a_full_disk_is_named_in_one_line(name: str, tmpfs: Tmpfs, room_sequence: Path,
+                                          done_run: RunFolder, capsys: pytest.CaptureFixture[str]
+                                          ) -> None:
     run = done_run.path
     if name in ("export-map", "render-map"):  # a map: a real (quick) SLAM run
         slam = run.parent / "slam"
@@ -115,7 +118,8 @@ def test_a_full_disk_is_named_in_one_line(name, tmpfs, room_sequence, done_run, 
 
 
 @pytest.mark.parametrize("free_kb", [10, 30, 50, 70, 90])
-def test_a_run_on_a_full_disk_records_why_it_failed(free_kb, tmpfs, room_sequence, capsys):
+def test_a_run_on_a_full_disk_records_why_it_failed(free_kb: int, tmpfs: Tmpfs, room_sequence: Path,
+                                                    capsys: pytest.CaptureFixture[str]) -> None:
     out = tmpfs.fill(free_kb) / "run"
     code, _, err = run_cli(capsys, "run", "--method", "egs", "--seq", room_sequence, "--out",
                            out, *QUICK_RUN)
@@ -132,7 +136,8 @@ def test_a_run_on_a_full_disk_records_why_it_failed(free_kb, tmpfs, room_sequenc
 
 @pytest.mark.slow
 @pytest.mark.parametrize("free_kb", [0, 200, 320, 340, 360, 380, 400, 420])
-def test_make_synthetic_on_a_full_disk_exits_cleanly(free_kb, tmpfs, tmp_path):
+def test_make_synthetic_on_a_full_disk_exits_cleanly(free_kb: int, tmpfs: Tmpfs, tmp_path: Path
+                                                     ) -> None:
     """HDF5 segfaulted at exit after a failed write of events.h5 (rc 139; at 340 to 380 KiB
     free, where the disk fills while events.h5 is written); a separate process, since a crash
     would take the test runner with it."""
@@ -155,7 +160,8 @@ def _enospc(*_args: object, **_kwargs: object) -> None:
     raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
 
 
-def test_a_file_write_on_a_full_disk_names_the_file(tmp_path, monkeypatch, capsys):
+def test_a_file_write_on_a_full_disk_names_the_file(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                    capsys: pytest.CaptureFixture[str]) -> None:
     monkeypatch.setattr(Path, "write_text", _enospc)
     out = tmp_path / "calib.yaml"
     code, _, err = run_cli(capsys, "make-calib", "-o", out)
@@ -163,8 +169,9 @@ def test_a_file_write_on_a_full_disk_names_the_file(tmp_path, monkeypatch, capsy
     assert list(tmp_path.iterdir()) == []  # the temporary file is gone
 
 
-def test_a_generated_folder_on_a_full_disk_is_named_not_its_staging_folder(tmp_path,
-                                                                           monkeypatch, capsys):
+def test_a_generated_folder_on_a_full_disk_is_named_not_its_staging_folder(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
     monkeypatch.setattr(Path, "write_bytes", _enospc)
     out = tmp_path / "seq"
     code, _, err = run_cli(capsys, "make-synthetic", "--scene", "office", "--out", out,
@@ -174,8 +181,9 @@ def test_a_generated_folder_on_a_full_disk_is_named_not_its_staging_folder(tmp_p
 
 
 @pytest.mark.parametrize("filename", [None, "/data/x.bin"])
-def test_the_cli_reports_any_enospc_as_a_full_disk(filename, tiny_sequence, monkeypatch,
-                                                   capsys):
+def test_the_cli_reports_any_enospc_as_a_full_disk(filename: str | None, tiny_sequence: Path,
+                                                   monkeypatch: pytest.MonkeyPatch,
+                                                   capsys: pytest.CaptureFixture[str]) -> None:
     def full(*_args: object, **_kwargs: object) -> None:
         raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), filename)
 
@@ -185,7 +193,9 @@ def test_the_cli_reports_any_enospc_as_a_full_disk(filename, tiny_sequence, monk
     assert line == (f"error: {filename}: {FULL}" if filename else f"error: {FULL}")
 
 
-def test_an_hdf5_file_on_a_full_disk_closes_and_names_itself(tmp_path, monkeypatch):
+def test_an_hdf5_file_on_a_full_disk_closes_and_names_itself(tmp_path: Path,
+                                                             monkeypatch: pytest.MonkeyPatch
+                                                             ) -> None:
     out = HDF5Output(tmp_path / "events.h5")
     dset = out.file.create_dataset("x", shape=(0,), maxshape=(None,), dtype=np.int64,
                                    chunks=(1024,))
@@ -209,7 +219,9 @@ def test_an_hdf5_file_on_a_full_disk_closes_and_names_itself(tmp_path, monkeypat
         out.close()  # HDF5 saw no failed write, so its own close succeeds
 
 
-def test_a_status_is_updated_in_place_when_the_disk_is_full(tmp_path, monkeypatch):
+def test_a_status_is_updated_in_place_when_the_disk_is_full(tmp_path: Path,
+                                                            monkeypatch: pytest.MonkeyPatch
+                                                            ) -> None:
     status = tmp_path / "status.json"
     write_text_atomic(status, json.dumps({"state": "running", "reason": None}))
     monkeypatch.setattr(Path, "write_text", _enospc)

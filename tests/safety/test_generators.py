@@ -32,7 +32,7 @@ def _start_generator(out: Path, cwd: Path):
     return proc
 
 
-def test_sigterm_removes_the_staging_folder(tmp_path):
+def test_sigterm_removes_the_staging_folder(tmp_path: Path) -> None:
     out = tmp_path / "seq"
     proc = _start_generator(out, tmp_path)
     proc.send_signal(signal.SIGTERM)
@@ -41,7 +41,9 @@ def test_sigterm_removes_the_staging_folder(tmp_path):
     assert list(tmp_path.iterdir()) == []  # neither the output nor a hidden staging folder
 
 
-def test_a_killed_generators_staging_folder_is_removed_by_the_next_run(tmp_path, capsys):
+def test_a_killed_generators_staging_folder_is_removed_by_the_next_run(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     out = tmp_path / "seq"
     proc = _start_generator(out, tmp_path)
     proc.send_signal(signal.SIGKILL)
@@ -54,7 +56,7 @@ def test_a_killed_generators_staging_folder_is_removed_by_the_next_run(tmp_path,
     assert _staging(out) == [] and len(Sequence.open(out)) == 2
 
 
-def test_a_live_staging_folder_is_left_alone(tmp_path):
+def test_a_live_staging_folder_is_left_alone(tmp_path: Path) -> None:
     out = tmp_path / "seq"
     live = tmp_path / ".seq.abc.tmp"
     live.mkdir()
@@ -67,7 +69,7 @@ def test_a_live_staging_folder_is_left_alone(tmp_path):
     assert clean_stale_staging(out) == [live] and not live.exists()
 
 
-def test_a_failed_build_leaves_nothing_and_keeps_the_old_folder(tmp_path):
+def test_a_failed_build_leaves_nothing_and_keeps_the_old_folder(tmp_path: Path) -> None:
     out = tmp_path / "seq"
     out.mkdir()
     (out / "old.txt").write_text("old")

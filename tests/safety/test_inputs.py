@@ -13,6 +13,7 @@ import pytest
 import yaml
 
 from egs_bench.eval.lpips import lpips_distance
+from egs_bench.runs.folder import RunFolder
 from tests.helpers.cli import assert_cli_error, run_cli
 
 BINARY = bytes(range(256)) * 8
@@ -39,20 +40,24 @@ def _set_meta(seq: Path, **changes: object) -> None:
     ({"crf": 5}, "crf must be a mapping"),
     ({"frame_rate": "fast"}, "frame_rate must be a positive number, got 'fast'"),
 ])
-def test_implausible_metadata_is_refused_where_it_is_read(seq_copy, capsys, change, message):
+def test_implausible_metadata_is_refused_where_it_is_read(seq_copy: Path,
+                                                          capsys: pytest.CaptureFixture[str],
+                                                          change, message: str) -> None:
     _set_meta(seq_copy, **change)
     code, _, err = run_cli(capsys, "info", seq_copy)
     assert_cli_error(code, err, 3, f"{seq_copy / 'meta.yaml'}: {message}")
 
 
 @pytest.mark.parametrize("name", ["meta.yaml", "groundtruth.txt", "frames.csv"])
-def test_binary_text_files_are_named(seq_copy, capsys, name):
+def test_binary_text_files_are_named(seq_copy: Path, capsys: pytest.CaptureFixture[str], name: str
+                                     ) -> None:
     (seq_copy / name).write_bytes(BINARY)
     code, _, err = run_cli(capsys, "info", seq_copy)
     assert_cli_error(code, err, 3, f"{seq_copy / name}: ")
 
 
-def test_inconsistent_ms_to_idx_is_refused(seq_copy, capsys):
+def test_inconsistent_ms_to_idx_is_refused(seq_copy: Path, capsys: pytest.CaptureFixture[str]
+                                           ) -> None:
     """An index that points a few events too late would silently drop them from windows."""
     with h5py.File(seq_copy / "events.h5", "r+") as f:
         m = f["ms_to_idx"][()]
@@ -76,13 +81,15 @@ def test_inconsistent_ms_to_idx_is_refused(seq_copy, capsys):
     ("keyframes.txt", BINARY, "keyframes.txt: not a UTF-8 text file"),
     ("run.yaml", b"method: m\nsequence: {name: s, path: 5}\n", "'sequence.path' must be a path"),
 ])
-def test_broken_run_files_are_named(done_run, capsys, name, content, message):
+def test_broken_run_files_are_named(done_run: RunFolder, capsys: pytest.CaptureFixture[str], name,
+                                    content, message) -> None:
     (done_run.path / name).write_bytes(content)
     code, _, err = run_cli(capsys, "eval", done_run.path)
     assert_cli_error(code, err, 3, done_run.path / name, message)
 
 
-def test_sixteen_bit_render_is_refused_not_truncated(done_run, capsys):
+def test_sixteen_bit_render_is_refused_not_truncated(done_run: RunFolder,
+                                                     capsys: pytest.CaptureFixture[str]) -> None:
     import cv2
 
     cv2.imwrite(str(done_run.render_path(0)), np.zeros((32, 48, 3), np.uint16))
@@ -91,7 +98,9 @@ def test_sixteen_bit_render_is_refused_not_truncated(done_run, capsys):
                      f"{done_run.render_path(0)}: expected an 8-bit image, found uint16 samples")
 
 
-def test_ate_does_not_depend_on_lpips_weights(done_run, tmp_path, monkeypatch, capsys):
+def test_ate_does_not_depend_on_lpips_weights(done_run: RunFolder, tmp_path: Path,
+                                              monkeypatch: pytest.MonkeyPatch,
+                                              capsys: pytest.CaptureFixture[str]) -> None:
     """Without LPIPS weights eval still writes ATE, PSNR and SSIM."""
     empty = tmp_path / "no_weights"
     empty.mkdir()
@@ -109,7 +118,8 @@ def test_ate_does_not_depend_on_lpips_weights(done_run, tmp_path, monkeypatch, c
     assert str(tmp_path) not in json.dumps(m["rendering"])  # no machine paths
 
 
-def test_truncated_lpips_weight_files(tmp_path, monkeypatch, capsys):
+def test_truncated_lpips_weight_files(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                      capsys: pytest.CaptureFixture[str]) -> None:
     from egs_bench.eval import lpips as lpips_mod
 
     img = np.full((32, 32, 3), 100, np.uint8)
@@ -136,8 +146,10 @@ def test_truncated_lpips_weight_files(tmp_path, monkeypatch, capsys):
         assert np.load(cache)["head0"].shape == (1, 64, 1, 1)  # rebuilt
 
 
-def test_exit_codes_tell_usage_data_and_internal_errors_apart(tiny_sequence, monkeypatch,
-                                                              capsys):
+def test_exit_codes_tell_usage_data_and_internal_errors_apart(tiny_sequence: Path,
+                                                              monkeypatch: pytest.MonkeyPatch,
+                                                              capsys: pytest.CaptureFixture[str]
+                                                              ) -> None:
     code, _, err = run_cli(capsys, "info", "--no-such-option", tiny_sequence)
     assert_cli_error(code, err, 2, "--no-such-option")
     code, _, err = run_cli(capsys, "show", tiny_sequence, "--frame", "99", "--out", "x.png")
@@ -145,7 +157,7 @@ def test_exit_codes_tell_usage_data_and_internal_errors_apart(tiny_sequence, mon
     code, _, err = run_cli(capsys, "info", Path(tiny_sequence) / "missing")
     assert_cli_error(code, err, 3, Path(tiny_sequence) / "missing")
 
-    def bug(*_args, **_kwargs):
+    def bug(*_args, **_kwargs) -> None:
         raise ValueError("shape mismatch in a kernel")
 
     monkeypatch.setattr("egs_bench.datasets.inspect.sequence_summary", bug)
@@ -154,7 +166,9 @@ def test_exit_codes_tell_usage_data_and_internal_errors_apart(tiny_sequence, mon
     assert line.startswith("internal error: ValueError: shape mismatch")
 
 
-def test_eventreplica_default_resize_keeps_the_aspect_ratio(tmp_path, capsys):
+def test_eventreplica_default_resize_keeps_the_aspect_ratio(tmp_path: Path,
+                                                            capsys: pytest.CaptureFixture[str]
+                                                            ) -> None:
     """A 4:3 input (7-Scenes-like) is not squashed to Replica's 459x260."""
     from egs_bench.color import linear_to_srgb8
     from egs_bench.datasets.replica import export_replica_layout

@@ -81,7 +81,8 @@ def test_a_signal_before_the_run_is_guarded_still_marks_it_interrupted(tmp_path:
                             overwrite=True).read_status().state == "running"  # lock released
 
 
-def test_a_signal_inside_create_after_the_status_went_out(tmp_path: Path, monkeypatch) -> None:
+def test_a_signal_inside_create_after_the_status_went_out(tmp_path: Path,
+                                                          monkeypatch: pytest.MonkeyPatch) -> None:
     mark_running = RunFolder.mark_running
 
     def mark_running_then_signal(self: RunFolder) -> None:
@@ -101,7 +102,8 @@ def test_a_signal_inside_create_after_the_status_went_out(tmp_path: Path, monkey
 
 
 def test_a_signal_inside_the_heartbeat_start_still_marks_and_logs(tmp_path: Path,
-                                                                 monkeypatch) -> None:
+                                                                  monkeypatch: pytest.MonkeyPatch
+                                                                  ) -> None:
     """The handler can run inside ``Thread.start()`` (it waits for the thread): the thread
     never started, and joining it raised over the clean-up (no log line, lock kept)."""
     import threading
@@ -124,13 +126,14 @@ def test_a_signal_inside_the_heartbeat_start_still_marks_and_logs(tmp_path: Path
                             overwrite=True).read_status().state == "running"
 
 
-def test_a_generator_with_a_swallowed_signal_exits_as_interrupted(tmp_path: Path, capsys,
-                                                                  monkeypatch) -> None:
+def test_a_generator_with_a_swallowed_signal_exits_as_interrupted(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
     from egs_bench.datasets.sequence import SequenceWriter
 
     add_frame = SequenceWriter.add_frame
 
-    def add_frame_then_signal(self, *args, **kwargs):
+    def add_frame_then_signal(self, *args, **kwargs) -> None:
         add_frame(self, *args, **kwargs)
         _swallowed_sigterm()
 
@@ -152,7 +155,7 @@ def test_a_repeated_signal_does_not_abort_the_clean_up_of_the_first() -> None:
     assert cleaned
 
 
-def test_a_repeat_after_the_grace_period_raises_again(monkeypatch) -> None:
+def test_a_repeat_after_the_grace_period_raises_again(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(interrupts, "REPEAT_GRACE_S", 0.0)
     with signals_interrupt():
         with pytest.raises(Interrupted):
@@ -181,8 +184,10 @@ def _register_monogs_with(monkeypatch, name: str, components) -> str:
     return name
 
 
-def test_a_run_with_a_swallowed_signal_stops_at_the_next_frame(tmp_path: Path, room_sequence,
-                                                               capsys, monkeypatch) -> None:
+def test_a_run_with_a_swallowed_signal_stops_at_the_next_frame(tmp_path: Path, room_sequence: Path,
+                                                               capsys: pytest.CaptureFixture[str],
+                                                               monkeypatch: pytest.MonkeyPatch
+                                                               ) -> None:
     """The SLAM loop checks once per frame: a signal swallowed while frame 1 was tracked stops
     the run before frame 2, marked interrupted with the trajectory of what it processed."""
     from egs_bench.slam.components import SlamComponents
@@ -212,8 +217,9 @@ def test_a_run_with_a_swallowed_signal_stops_at_the_next_frame(tmp_path: Path, r
     assert status.progress is not None and status.progress[0] == 2  # says where it stopped
 
 
-def test_a_signal_swallowed_in_map_initialisation_stops_it(tmp_path: Path, room_sequence,
-                                                           capsys, monkeypatch) -> None:
+def test_a_signal_swallowed_in_map_initialisation_stops_it(tmp_path: Path, room_sequence: Path,
+                                                           capsys: pytest.CaptureFixture[str],
+                                                           monkeypatch: pytest.MonkeyPatch) -> None:
     """Map initialisation runs minutes without reaching the frame loop: it checks every
     iteration, so a signal swallowed during its first iteration stops it at the second."""
     from egs_bench.slam.components import SlamComponents

@@ -17,6 +17,7 @@ from egs_bench.errors import OutputError, UnwritableOutputError
 from egs_bench.fileio import atomic_path
 from egs_bench.images import read_ldr_image, write_ldr_image
 from egs_bench.outputs import prepare_output
+from egs_bench.runs.folder import RunFolder
 from tests.helpers.cli import assert_cli_error, run_cli
 from tests.helpers.safety_helpers import QUICK_RUN
 
@@ -52,8 +53,9 @@ def _ply(tmp_path: Path) -> Path:
 # ---------------------------------------------------------------- a folder became a file
 @pytest.mark.parametrize("command", ["show", "render-map", "render-demo", "leaderboard"])
 @pytest.mark.parametrize("overwrite", [False, True])
-def test_file_outputs_never_replace_a_folder(command, overwrite, tmp_path, tiny_sequence,
-                                             done_run, capsys):
+def test_file_outputs_never_replace_a_folder(command: str, overwrite: bool, tmp_path: Path,
+                                             tiny_sequence: Path, done_run: RunFolder,
+                                             capsys: pytest.CaptureFixture[str]) -> None:
     target = _user_folder(tmp_path / "d")
     before = _snapshot(target)
     argv = {
@@ -71,7 +73,9 @@ def test_file_outputs_never_replace_a_folder(command, overwrite, tmp_path, tiny_
     assert target.is_dir() and _snapshot(target) == before
 
 
-def test_overwrite_replaces_only_an_output_of_the_same_kind(tmp_path, tiny_sequence, capsys):
+def test_overwrite_replaces_only_an_output_of_the_same_kind(tmp_path: Path, tiny_sequence: Path,
+                                                            capsys: pytest.CaptureFixture[str]
+                                                            ) -> None:
     notes = tmp_path / "panel.png"
     notes.write_text("not an image, my notes\n")
     code, _, err = run_cli(capsys, "show", tiny_sequence, "--frame", "1", "--out", notes,
@@ -88,7 +92,7 @@ def test_overwrite_replaces_only_an_output_of_the_same_kind(tmp_path, tiny_seque
     assert read_ldr_image(png).shape[1] > 300  # the panel replaced it
 
 
-def test_atomic_writes_refuse_folders_and_leave_no_temporary_files(tmp_path):
+def test_atomic_writes_refuse_folders_and_leave_no_temporary_files(tmp_path: Path) -> None:
     folder = _user_folder(tmp_path / "out.txt")
     with pytest.raises(OutputError, match="is a folder that is not empty; refusing to replace"):
         with atomic_path(folder) as tmp:
@@ -106,8 +110,9 @@ def test_atomic_writes_refuse_folders_and_leave_no_temporary_files(tmp_path):
 
 
 # ---------------------------------------------------------------- run --out <finished run>
-def test_run_into_a_finished_run_needs_overwrite_and_keeps_user_files(tmp_path, room_sequence,
-                                                                      capsys):
+def test_run_into_a_finished_run_needs_overwrite_and_keeps_user_files(
+        tmp_path: Path, room_sequence: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     out = tmp_path / "run"
     argv = ["run", "--method", "monogs", "--seq", room_sequence, "--out", out, *QUICK_RUN]
     assert run_cli(capsys, *argv)[0] == 0
@@ -124,7 +129,8 @@ def test_run_into_a_finished_run_needs_overwrite_and_keeps_user_files(tmp_path, 
     assert "kept 1 file(s) of the replaced run folder" in (out / "log.txt").read_text()
 
 
-def test_run_out_must_be_a_run_folder(tmp_path, tiny_sequence, capsys):
+def test_run_out_must_be_a_run_folder(tmp_path: Path, tiny_sequence: Path,
+                                      capsys: pytest.CaptureFixture[str]) -> None:
     user = _user_folder(tmp_path / "docs")
     before = _snapshot(user)
     for extra in ([], ["--overwrite"]):
@@ -136,7 +142,10 @@ def test_run_out_must_be_a_run_folder(tmp_path, tiny_sequence, capsys):
 
 # ---------------------------------------------------------------- the current directory,
 # the input, a parent of the input
-def test_make_synthetic_never_replaces_the_current_directory(tmp_path, monkeypatch, capsys):
+def test_make_synthetic_never_replaces_the_current_directory(tmp_path: Path,
+                                                             monkeypatch: pytest.MonkeyPatch,
+                                                             capsys: pytest.CaptureFixture[str]
+                                                             ) -> None:
     work = _user_folder(tmp_path / "work")
     monkeypatch.chdir(work)
     before = _snapshot(work)
@@ -147,7 +156,8 @@ def test_make_synthetic_never_replaces_the_current_directory(tmp_path, monkeypat
     assert _snapshot(work) == before and sorted(os.listdir(work)) == ["notes.txt", "sub"]
 
 
-def test_make_eventreplica_never_replaces_its_input(tmp_path, capsys):
+def test_make_eventreplica_never_replaces_its_input(tmp_path: Path,
+                                                    capsys: pytest.CaptureFixture[str]) -> None:
     from egs_bench.datasets.replica import export_replica_layout
     from egs_bench.geometry import Intrinsics
 
@@ -164,7 +174,9 @@ def test_make_eventreplica_never_replaces_its_input(tmp_path, capsys):
     assert _snapshot(scene) == before
 
 
-def test_generated_sequences_are_replaced_only_when_clean_and_asked(tmp_path, capsys):
+def test_generated_sequences_are_replaced_only_when_clean_and_asked(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     out = tmp_path / "seq"
     argv = ["make-synthetic", "--scene", "office", "--out", out, "--frames", "2", "--width",
             "32", "--height", "24", "--no-progress"]
@@ -182,7 +194,8 @@ def test_generated_sequences_are_replaced_only_when_clean_and_asked(tmp_path, ca
     assert [p.name for p in tmp_path.iterdir()] == ["seq"]  # no staging folder left
 
 
-def test_protected_paths_even_with_overwrite(tmp_path, monkeypatch):
+def test_protected_paths_even_with_overwrite(tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+                                             ) -> None:
     monkeypatch.setenv("HOME", str(tmp_path / "home"))
     home = _user_folder(tmp_path / "home")
     for path in (home, Path(home.anchor)):
@@ -191,7 +204,8 @@ def test_protected_paths_even_with_overwrite(tmp_path, monkeypatch):
 
 
 # ---------------------------------------------------------------- unwritable output locations
-def test_output_under_a_file_is_a_clear_data_error(tmp_path, tiny_sequence, capsys):
+def test_output_under_a_file_is_a_clear_data_error(tmp_path: Path, tiny_sequence: Path,
+                                                   capsys: pytest.CaptureFixture[str]) -> None:
     blocker = tmp_path / "file.txt"
     blocker.write_text("x")
     code, _, err = run_cli(capsys, "show", tiny_sequence, "--frame", "1", "--out",
@@ -200,7 +214,8 @@ def test_output_under_a_file_is_a_clear_data_error(tmp_path, tiny_sequence, caps
 
 
 @pytest.mark.skipif(os.geteuid() == 0, reason="root ignores folder permissions")
-def test_read_only_output_folder_is_a_clear_data_error(tmp_path, tiny_sequence, capsys):
+def test_read_only_output_folder_is_a_clear_data_error(tmp_path: Path, tiny_sequence: Path,
+                                                       capsys: pytest.CaptureFixture[str]) -> None:
     ro = tmp_path / "ro"
     ro.mkdir()
     ro.chmod(0o500)
@@ -214,7 +229,8 @@ def test_read_only_output_folder_is_a_clear_data_error(tmp_path, tiny_sequence, 
         ro.chmod(0o700)
 
 
-def test_demo_rewrites_only_its_own_outputs(tmp_path, monkeypatch):
+def test_demo_rewrites_only_its_own_outputs(tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+                                            ) -> None:
     """The demo resumes into its folder: a foreign file where its panel goes is not replaced."""
     from egs_bench.demo import run_demo
 
@@ -236,7 +252,9 @@ def _plane(tmp_path: Path) -> Path:
     return make_plane_sequence(tmp_path / "seq", frames=2)
 
 
-def test_overwrite_never_replaces_a_file_inside_an_input_folder(seq_copy, capsys):
+def test_overwrite_never_replaces_a_file_inside_an_input_folder(seq_copy: Path,
+                                                                capsys: pytest.CaptureFixture[str]
+                                                                ) -> None:
     frame = seq_copy / "rgb" / "000001.png"
     before = frame.read_bytes()
     code, _, err = run_cli(capsys, "show", seq_copy, "--frame", "1", "--out", frame,

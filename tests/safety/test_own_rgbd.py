@@ -50,7 +50,8 @@ def _make(capsys, folder: Path, out: Path, *extra: str | Path) -> tuple[int, str
     return code, err
 
 
-def test_a_clean_folder_becomes_a_sequence(tmp_path, capsys):
+def test_a_clean_folder_becomes_a_sequence(tmp_path: Path, capsys: pytest.CaptureFixture[str]
+                                           ) -> None:
     code, err = _make(capsys, _tum_folder(tmp_path / "tum"), tmp_path / "out")
     assert code == 0, err
     assert len(Sequence.open(tmp_path / "out")) == N - 1  # the first frame starts the timeline
@@ -63,7 +64,8 @@ def test_a_clean_folder_becomes_a_sequence(tmp_path, capsys):
     (lambda lines: [lines[0], lines[1], lines[2], lines[2].replace(".png", "b.png"), *lines[3:]],
      "line 4: time stamp 1.033333 of rgb/1.033333b.png is also the stamp of rgb/1.033333.png"),
 ], ids=["out-of-order", "repeated"])
-def test_out_of_order_and_repeated_stamps_are_refused(edit, message, tmp_path, capsys):
+def test_out_of_order_and_repeated_stamps_are_refused(edit, message, tmp_path: Path,
+                                                      capsys: pytest.CaptureFixture[str]) -> None:
     folder = _tum_folder(tmp_path / "tum")
     lines = (folder / "rgb.txt").read_text().splitlines()
     (folder / "rgb.txt").write_text("\n".join(edit(lines)) + "\n")
@@ -75,7 +77,8 @@ def test_out_of_order_and_repeated_stamps_are_refused(edit, message, tmp_path, c
     assert not (tmp_path / "out").exists()
 
 
-def test_an_exactly_repeated_line_is_read_once(tmp_path, capsys):
+def test_an_exactly_repeated_line_is_read_once(tmp_path: Path, capsys: pytest.CaptureFixture[str]
+                                               ) -> None:
     folder = _tum_folder(tmp_path / "tum")
     lines = (folder / "rgb.txt").read_text().splitlines()
     (folder / "rgb.txt").write_text("\n".join([*lines[:3], lines[2], *lines[3:]]) + "\n")
@@ -83,7 +86,7 @@ def test_an_exactly_repeated_line_is_read_once(tmp_path, capsys):
     assert code == 0, err
 
 
-def test_all_zero_depth_is_refused(tmp_path, capsys):
+def test_all_zero_depth_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     folder = _tum_folder(tmp_path / "tum", depth_value=0)
     code, err = _make(capsys, folder, tmp_path / "out")
     assert_cli_error(code, err, 3, f"{folder / 'depth' / '1.000000.png'}: holds no depth: "
@@ -91,7 +94,9 @@ def test_all_zero_depth_is_refused(tmp_path, capsys):
     assert not (tmp_path / "out").exists()
 
 
-def test_a_depth_scale_that_puts_every_depth_out_of_range_is_refused(tmp_path, capsys):
+def test_a_depth_scale_that_puts_every_depth_out_of_range_is_refused(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     folder = _tum_folder(tmp_path / "tum")  # 10000 = 2 m at 5000 per metre
     (tmp_path / "camera.yaml").write_text(CAMERA + "depth_scale: 1\n")
     code, err = _make(capsys, folder, tmp_path / "out")
@@ -100,7 +105,8 @@ def test_a_depth_scale_that_puts_every_depth_out_of_range_is_refused(tmp_path, c
                                    "depth_scale 1 per metre)", "is the depth scale right?")
 
 
-def test_generic_layout_refuses_a_frame_without_depth(tmp_path, capsys):
+def test_generic_layout_refuses_a_frame_without_depth(tmp_path: Path,
+                                                      capsys: pytest.CaptureFixture[str]) -> None:
     folder = _tum_folder(tmp_path / "tum")
     write_depth_png(folder / "depth" / f"{STAMPS[2]:.6f}.png", np.zeros((H, W), np.uint16))
     (tmp_path / "generic.yaml").write_text(CAMERA + "depth_scale: 5000\n")

@@ -38,7 +38,7 @@ def _start_slow_run(seq: Path, out: Path, cwd: Path):
 
 
 def test_a_second_writer_is_refused_and_a_killed_run_reads_as_interrupted(
-        tmp_path, room_sequence, capsys):
+        tmp_path: Path, room_sequence: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "run"
     proc = _start_slow_run(room_sequence, out, tmp_path)
     try:
@@ -70,7 +70,7 @@ def test_a_second_writer_is_refused_and_a_killed_run_reads_as_interrupted(
     assert RunFolder.open(out).read_status().state == "done"
 
 
-def test_sigterm_marks_the_run_interrupted(tmp_path, room_sequence):
+def test_sigterm_marks_the_run_interrupted(tmp_path: Path, room_sequence: Path) -> None:
     out = tmp_path / "run"
     proc = _start_slow_run(room_sequence, out, tmp_path)
     proc.send_signal(signal.SIGTERM)
@@ -82,7 +82,8 @@ def test_sigterm_marks_the_run_interrupted(tmp_path, room_sequence):
     assert "INTERRUPTED: interrupted by SIGTERM" in (out / "log.txt").read_text()
 
 
-def test_interrupted_run_is_scored_on_what_it_wrote(done_run, tmp_path, room_sequence):
+def test_interrupted_run_is_scored_on_what_it_wrote(done_run: RunFolder, tmp_path: Path,
+                                                    room_sequence: Path) -> None:
     seq_frames = len(done_run.read_trajectory())
     run = RunFolder.create(tmp_path / "partial", method="m", sequence_name="s",
                            sequence_path=room_sequence)
@@ -97,7 +98,7 @@ def test_interrupted_run_is_scored_on_what_it_wrote(done_run, tmp_path, room_seq
     assert m["rendering"] is None and any("lacks 1 of the renders" in n for n in m["notes"])
 
 
-def test_running_state_from_another_host_needs_a_recent_heartbeat(done_run):
+def test_running_state_from_another_host_needs_a_recent_heartbeat(done_run: RunFolder) -> None:
     now = time.time()
 
     def write(heartbeat_age_s: float) -> None:
@@ -116,8 +117,9 @@ def test_running_state_from_another_host_needs_a_recent_heartbeat(done_run):
         evaluate_run(done_run.path)
 
 
-def test_heartbeat_refreshes_while_running_and_stops_at_the_end(tmp_path, tiny_sequence,
-                                                                 monkeypatch):
+def test_heartbeat_refreshes_while_running_and_stops_at_the_end(tmp_path: Path, tiny_sequence: Path,
+                                                                monkeypatch: pytest.MonkeyPatch
+                                                                ) -> None:
     ticks = iter(f"2026-01-01T00:00:{s:02d}Z" for s in range(60))
     monkeypatch.setattr(folder_mod, "HEARTBEAT_S", 0.02)
     monkeypatch.setattr(folder_mod, "_now_utc", lambda: next(ticks))
@@ -134,7 +136,7 @@ def test_heartbeat_refreshes_while_running_and_stops_at_the_end(tmp_path, tiny_s
     assert _status(run.path)["state"] == "done"
 
 
-def test_library_create_is_locked_too(tmp_path, tiny_sequence):
+def test_library_create_is_locked_too(tmp_path: Path, tiny_sequence: Path) -> None:
     first = RunFolder.create(tmp_path / "r", method="m", sequence_name="s",
                              sequence_path=tiny_sequence)
     with pytest.raises(OutputError, match=r"is being written by another egs-bench process "
@@ -152,7 +154,7 @@ def test_library_create_is_locked_too(tmp_path, tiny_sequence):
 
 
 def test_max_frames_zero_and_an_event_method_without_events_are_refused(
-        seq_copy, tmp_path, capsys):
+        seq_copy: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     code, _, err = run_cli(capsys, "run", "--method", "monogs", "--seq", seq_copy, "--out",
                            tmp_path / "r0", "--max-frames", "0", "--quiet")
     assert_cli_error(code, err, 2, "Invalid value for '--max-frames'", "greater than or equal to 1")
@@ -166,8 +168,10 @@ def test_max_frames_zero_and_an_event_method_without_events_are_refused(
     assert not (tmp_path / "r1").exists()
 
 
-def test_user_methods_without_overwrite_support_are_told_so(tmp_path, tiny_sequence, capsys,
-                                                             monkeypatch):
+def test_user_methods_without_overwrite_support_are_told_so(tmp_path: Path, tiny_sequence: Path,
+                                                            capsys: pytest.CaptureFixture[str],
+                                                            monkeypatch: pytest.MonkeyPatch
+                                                            ) -> None:
     (tmp_path / "plain_method.py").write_text(
         "class M:\n    name = 'plain'\n    description = 'no overwrite'\n"
         "    def run(self, sequence, out, *, preset, device, seed, max_frames, progress):\n"
@@ -180,7 +184,9 @@ def test_user_methods_without_overwrite_support_are_told_so(tmp_path, tiny_seque
     assert np.all([not (tmp_path / "r").exists()])
 
 
-def test_a_signal_surfacing_inside_numba_exits_as_an_interruption(monkeypatch, capsys) -> None:
+def test_a_signal_surfacing_inside_numba_exits_as_an_interruption(monkeypatch: pytest.MonkeyPatch,
+                                                                  capsys: pytest.CaptureFixture[str]
+                                                                  ) -> None:
     """numba turns a signal handler's exception into ``SystemError: ... returned a result with
     an exception set`` (the interruption as its cause): the CLI must exit 128 + 15 with one
     line, not report an internal error (70)."""
@@ -193,8 +199,9 @@ def test_a_signal_surfacing_inside_numba_exits_as_an_interruption(monkeypatch, c
     assert err.strip() == "interrupted by SIGTERM"
 
 
-def test_progress_rides_on_the_heartbeat_and_stays_in_the_final_status(tmp_path, tiny_sequence,
-                                                                        monkeypatch):
+def test_progress_rides_on_the_heartbeat_and_stays_in_the_final_status(
+        tmp_path: Path, tiny_sequence: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     """``set_progress`` writes nothing itself; the next heartbeat carries it (what a sweep
     status shows for a long run) and the final state keeps where the run ended."""
     monkeypatch.setattr(folder_mod, "HEARTBEAT_S", 0.02)
@@ -215,7 +222,7 @@ def test_progress_rides_on_the_heartbeat_and_stays_in_the_final_status(tmp_path,
 
 @pytest.mark.parametrize("progress", [{"done": 4}, {"done": 5, "total": 4}, [1, 2],
                                       {"done": -1, "total": 4}, {"done": True, "total": 4}])
-def test_a_malformed_progress_names_the_file(done_run, progress):
+def test_a_malformed_progress_names_the_file(done_run: RunFolder, progress) -> None:
     data = _status(done_run.path)
     (done_run.path / "status.json").write_text(json.dumps({**data, "progress": progress}))
     with pytest.raises(InputError, match="status.json.*'progress' must be"):

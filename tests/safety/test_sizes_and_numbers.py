@@ -31,13 +31,15 @@ def _integer_fields() -> list[str]:
 
 
 @pytest.mark.parametrize("key", _integer_fields())
-def test_every_count_has_an_upper_bound(key):
+def test_every_count_has_an_upper_bound(key) -> None:
     base = config.cpu_preset()
     with pytest.raises(ConfigError, match=key):
         base.replace(**{key: HUGE}).validate()
 
 
-def test_a_huge_count_is_refused_before_the_run_folder_exists(tiny_sequence, tmp_path, capsys):
+def test_a_huge_count_is_refused_before_the_run_folder_exists(tiny_sequence: Path, tmp_path: Path,
+                                                              capsys: pytest.CaptureFixture[str]
+                                                              ) -> None:
     out = tmp_path / "run"
     code, _, err = run_cli(capsys, "run", "--method", "egs", "--seq", tiny_sequence, "--out",
                            out, *QUICK_RUN, "--set", f"method.crf_nodes={HUGE}")
@@ -51,7 +53,7 @@ def test_a_huge_count_is_refused_before_the_run_folder_exists(tiny_sequence, tmp
     ("lr_means=+2E-4", "budget.lr_means", 2e-4),
     ("theta=.25", "method.theta", 0.25),  # an optional number
 ])
-def test_exponent_notation_is_a_number(text, key, value):
+def test_exponent_notation_is_a_number(text: str, key: str, value: float) -> None:
     assert config.parse_overrides([text]) == {key: value}
 
 
@@ -60,12 +62,13 @@ def test_exponent_notation_is_a_number(text, key, value):
     ("crf_nodes=1e3", "needs an integer, got '1e3'"),  # a float's notation for a count
     ("lambda_d=inf", "needs a finite number, got inf"),
 ])
-def test_strings_that_are_not_numbers_stay_refused(text, message):
+def test_strings_that_are_not_numbers_stay_refused(text: str, message: str) -> None:
     with pytest.raises(ConfigError, match=message):
         config.parse_overrides([text])
 
 
-def test_run_set_takes_exponent_notation(tiny_sequence, tmp_path, capsys):
+def test_run_set_takes_exponent_notation(tiny_sequence: Path, tmp_path: Path,
+                                         capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "run"
     code, _, err = run_cli(capsys, "run", "--method", "monogs", "--seq", tiny_sequence,
                            "--out", out, *QUICK_RUN, "--max-frames", "2",
@@ -75,7 +78,8 @@ def test_run_set_takes_exponent_notation(tiny_sequence, tmp_path, capsys):
 
 
 @pytest.mark.slow
-def test_sweep_set_takes_exponent_notation(room_sequence, tmp_path, capsys):
+def test_sweep_set_takes_exponent_notation(room_sequence: Path, tmp_path: Path,
+                                           capsys: pytest.CaptureFixture[str]) -> None:
     sweep = tmp_path / "sweep.yaml"
     # written as a user types it: PyYAML reads this `1e-3` as the string "1e-3"
     sweep.write_text(f"sequences: [{room_sequence}]\nmethods: [monogs]\npreset: cpu\n"
@@ -89,7 +93,8 @@ def test_sweep_set_takes_exponent_notation(room_sequence, tmp_path, capsys):
     assert json.loads((run_dir / "status.json").read_text())["state"] == "done"
 
 
-def test_render_map_refuses_a_size_that_cannot_fit(tmp_path, capsys):
+def test_render_map_refuses_a_size_that_cannot_fit(tmp_path: Path,
+                                                   capsys: pytest.CaptureFixture[str]) -> None:
     from tests.safety.test_outputs import _ply
 
     ply = _ply(tmp_path)

@@ -15,7 +15,8 @@ from tests.helpers.cli import assert_cli_error, run_cli
 @pytest.mark.parametrize("shell,marker", [("zsh", "#compdef egs-bench"),
                                           ("bash", "complete -o default -F"),
                                           ("fish", "complete --command egs-bench")])
-def test_show_completion_prints_the_named_shells_script(shell, marker, capsys):
+def test_show_completion_prints_the_named_shells_script(shell: str, marker: str,
+                                                        capsys: pytest.CaptureFixture[str]) -> None:
     code, out, err = run_cli(capsys, "--show-completion", shell)
     assert code == 0, err
     assert marker in out, out
@@ -28,7 +29,10 @@ def trajectories(room_sequence: Path, tmp_path: Path) -> tuple[Path, Path]:
     return gt, est
 
 
-def test_ate_overwrite_replaces_only_an_ate_results_file(trajectories, tmp_path, capsys):
+def test_ate_overwrite_replaces_only_an_ate_results_file(trajectories: tuple[Path, Path],
+                                                         tmp_path: Path,
+                                                         capsys: pytest.CaptureFixture[str]
+                                                         ) -> None:
     gt, est = trajectories
     report = tmp_path / "report.json"
     report.write_text(json.dumps({"generator": "egs-bench report", "runs": []}))
@@ -44,7 +48,8 @@ def test_ate_overwrite_replaces_only_an_ate_results_file(trajectories, tmp_path,
     assert json.loads(results.read_text())["metric"] == "ATE"
 
 
-def test_a_corrupt_sweep_record_is_named(tmp_path, capsys):
+def test_a_corrupt_sweep_record_is_named(tmp_path: Path, capsys: pytest.CaptureFixture[str]
+                                         ) -> None:
     from tests.helpers.sweep_fixtures import make_sequence
 
     seq = make_sequence(tmp_path, "sa", frames=5)

@@ -8,7 +8,7 @@ import pytest
 
 
 @pytest.fixture(scope="session")
-def tiny_room(tmp_path_factory) -> Path:
+def tiny_room(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """6 frames, 64x48, of the synthetic office (a 3-D room, unlike the plane): ~0.5 cm and
     0.6 deg per frame, 20 ms exposure, events. Generation takes ~10 s on 2 cores."""
     from egs_bench.datasets.synthetic import make_synthetic

@@ -40,7 +40,7 @@ PARTS = SlamComponents(keyframes=EverySecondFrame)
 
 
 @pytest.fixture(scope="module")
-def six_frames(tmp_path_factory) -> Path:
+def six_frames(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The plane scene, 6 frames: keyframes at frames 2 and 4 under :class:`EverySecondFrame`."""
     from tests.helpers.plane_scene import make_plane_sequence
 

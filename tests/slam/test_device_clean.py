@@ -11,6 +11,7 @@ unaffected; the numba rasteriser, CPU-only by design, runs with the CPU default.
 from __future__ import annotations
 
 import importlib
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -26,7 +27,7 @@ FAST = dict(resolution_scale=1.0, init_iters=3, tracking_iters=3, mapping_iters=
 
 
 @pytest.fixture
-def stray_tensors_on_meta(monkeypatch):
+def stray_tensors_on_meta(monkeypatch: pytest.MonkeyPatch) -> Iterator[None]:
     """Default device ``meta`` everywhere except inside the numba rasteriser backend."""
     numba_backend = importlib.import_module("egs_bench.render.numba_backend")
     composite = numba_backend.composite_tiles
@@ -44,7 +45,7 @@ def stray_tensors_on_meta(monkeypatch):
 @pytest.mark.parametrize("motion_model", ["constant-velocity", "constant-position"])
 def test_slam_makes_no_tensor_off_the_system_device(tiny_sequence: Path, method: str,
                                                     motion_model: str,
-                                                    stray_tensors_on_meta) -> None:
+                                                    stray_tensors_on_meta: None) -> None:
     seq = Sequence.open(tiny_sequence)
     cfg = methods.BUILTIN[method].config("cpu").replace(motion_model=motion_model, **FAST)
     result = SlamSystem(seq, cfg, device="cpu", seed=0).run(len(seq))
@@ -52,7 +53,7 @@ def test_slam_makes_no_tensor_off_the_system_device(tiny_sequence: Path, method:
     assert result.gmap.means.device.type == "cpu"
 
 
-def test_the_check_catches_a_tensor_made_without_a_device(stray_tensors_on_meta) -> None:
+def test_the_check_catches_a_tensor_made_without_a_device(stray_tensors_on_meta: None) -> None:
     """The mechanism itself: a CPU tensor combined with one made without a device raises."""
     cpu = torch.ones(3, device="cpu")
     with pytest.raises((RuntimeError, NotImplementedError)):

@@ -77,7 +77,7 @@ def test_the_guides_keyframe_setting_is_an_option_with_its_range(guide_namespace
     assert [policy.is_keyframe(candidate(i)) for i in (1, 2, 3, 4)] == [False, False, True, True]
 
 
-def test_the_guides_run_uses_its_keyframe_rule_tracker_and_loss_weight(guide_namespace,
+def test_the_guides_run_uses_its_keyframe_rule_tracker_and_loss_weight(guide_namespace: dict,
                                                                        guide_folder: Path) -> None:
     run = guide_namespace["run"]
     assert run.read_status().state == "done"
@@ -90,7 +90,7 @@ def test_the_guides_run_uses_its_keyframe_rule_tracker_and_loss_weight(guide_nam
     assert get_method("egs-depth-tv") is guide_namespace["METHOD"]
 
 
-def test_the_guides_loss_term_on_a_depth_ramp(guide_namespace) -> None:
+def test_the_guides_loss_term_on_a_depth_ramp(guide_namespace: dict) -> None:
     """A depth ramp of 0.1 m per column and constant rows: mean |dx| = 0.1, |dy| = 0, so the
     term is 0.1 x its weight, per view."""
     from egs_bench.slam.config import cpu_preset
@@ -116,7 +116,7 @@ def test_the_guides_loss_term_on_a_depth_ramp(guide_namespace) -> None:
     np.testing.assert_allclose(term.value(views, stacked).numpy(), [0.05, 0.05], rtol=1e-12)
 
 
-def test_the_guides_dataset_is_a_valid_sequence_with_what_it_wrote(guide_namespace,
+def test_the_guides_dataset_is_a_valid_sequence_with_what_it_wrote(guide_namespace: dict,
                                                                   guide_folder: Path) -> None:
     from egs_bench.datasets.sequence import Sequence
 
@@ -135,7 +135,7 @@ def test_the_guides_dataset_is_a_valid_sequence_with_what_it_wrote(guide_namespa
 
 
 def test_the_guides_short_steps_leave_a_tenth_of_the_spread_after_alignment(
-        guide_namespace, guide_folder: Path) -> None:
+        guide_namespace: dict, guide_folder: Path) -> None:
     """Positions scaled by 0.9 about frame 0: the SE(3) alignment that best maps them onto the
     ground truth is a pure translation, and 10 % of each position's offset from the mean
     remains."""

@@ -3,6 +3,8 @@ frame 0's pose, reproducible per seed, none at 0."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -18,7 +20,7 @@ def _moved(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
     return float(np.linalg.norm(so3_log(rel[:3, :3]))), float(np.linalg.norm(rel[:3, 3]))
 
 
-def test_perturbation_zero_leaves_the_pose_and_a_seed_moves_it_by_its_size():
+def test_perturbation_zero_leaves_the_pose_and_a_seed_moves_it_by_its_size() -> None:
     pose = np.eye(4)
     assert perturbed_pose(pose, 0) is pose
     angle, shift = _moved(perturbed_pose(pose, 3), pose)
@@ -27,7 +29,7 @@ def test_perturbation_zero_leaves_the_pose_and_a_seed_moves_it_by_its_size():
     assert not np.array_equal(perturbed_pose(pose, 3), perturbed_pose(pose, 4))
 
 
-def test_a_run_starts_from_the_perturbed_pose(tiny_room):
+def test_a_run_starts_from_the_perturbed_pose(tiny_room: Path) -> None:
     seq = Sequence.open(tiny_room)
     base = methods.BUILTIN["monogs"].config("cpu").replace(init_iters=1, tracking_iters=1)
     gt0 = invert_pose(np.asarray(seq.poses[0], dtype=np.float64))

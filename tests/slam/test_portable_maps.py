@@ -36,7 +36,7 @@ FRAMES = 5
 
 
 @pytest.fixture(scope="module")
-def egs_run(tmp_path_factory) -> RunFolder:
+def egs_run(tmp_path_factory: pytest.TempPathFactory) -> RunFolder:
     """``egs`` (cpu preset, few iterations) on 5 frames of the built-in office scene at 64x48.
     The CRF starts on the sRGB curve so that it is far from the identity: the run is too short
     for keyframe mapping, where the CRF is learned, so a linear start would stay the identity
@@ -56,7 +56,7 @@ def egs_run(tmp_path_factory) -> RunFolder:
                     settings=RunSettings(preset="cpu", seed=3, progress=False))
 
 
-def test_appearance_file_describes_the_run(egs_run) -> None:
+def test_appearance_file_describes_the_run(egs_run: RunFolder) -> None:
     from egs_bench.datasets.sequence import Sequence
 
     app_ = read_appearance(egs_run.path / "appearance.json")
@@ -77,7 +77,7 @@ def test_appearance_file_describes_the_run(egs_run) -> None:
 
 
 @pytest.mark.parametrize("frame", [0, 2, FRAMES - 1])
-def test_render_map_reproduces_the_runs_render(egs_run, tmp_path, frame) -> None:
+def test_render_map_reproduces_the_runs_render(egs_run: RunFolder, tmp_path: Path, frame) -> None:
     out = tmp_path / "view.png"
     res = runner.invoke(app, ["render-map", str(egs_run.path), "--frame", str(frame), "-o",
                               str(out)])
@@ -96,7 +96,7 @@ def test_render_map_reproduces_the_runs_render(egs_run, tmp_path, frame) -> None
     assert psnr(raw, theirs) < 20.0
 
 
-def test_render_map_exposure_option(egs_run) -> None:
+def test_render_map_exposure_option(egs_run: RunFolder) -> None:
     """``--exposure``: exp(a) LDR + b of the frame, applied before the 8-bit rounding."""
     src = open_map(egs_run.path)
     plain, _ = render_map_view(src, frame=3)
@@ -159,7 +159,7 @@ def _gsplat_load_ply(path: Path) -> dict[str, np.ndarray]:
             "opacities": np.asarray(el["opacity"]), "sh0": sh0, "shN": f_rest}
 
 
-def test_display_export_loads_in_inria_and_gsplat(egs_run, tmp_path) -> None:
+def test_display_export_loads_in_inria_and_gsplat(egs_run: RunFolder, tmp_path: Path) -> None:
     out = tmp_path / "display.ply"
     res = runner.invoke(app, ["export-map", str(egs_run.path), "-o", str(out)])
     assert res.exit_code == 0, res.output
@@ -228,7 +228,7 @@ def test_display_export_loads_in_inria_and_gsplat(egs_run, tmp_path) -> None:
     np.testing.assert_allclose(back.colors.numpy(), expected_rgb, atol=2e-6)
 
 
-def test_old_maps_still_load(tmp_path) -> None:
+def test_old_maps_still_load(tmp_path: Path) -> None:
     """A map in the layout written before the colour tag (no comment, no f_rest_*)."""
     rng = np.random.default_rng(0)
     names = (["x", "y", "z", "nx", "ny", "nz", "f_dc_0", "f_dc_1", "f_dc_2", "opacity"]
@@ -268,7 +268,8 @@ def test_crf_round_trip_all_kinds() -> None:
         crf_from_dict({"kind": "learnable"})
 
 
-def test_bad_inputs_one_line_each(egs_run, tmp_path, capsys) -> None:
+def test_bad_inputs_one_line_each(egs_run: RunFolder, tmp_path: Path,
+                                  capsys: pytest.CaptureFixture[str]) -> None:
     from egs_bench.cli import main
 
     (tmp_path / "junk.json").write_text("{not json")
@@ -345,7 +346,7 @@ def _inria_render(path: Path, camera, pose: np.ndarray) -> np.ndarray:
 
 
 @pytest.mark.parametrize("kind", ["learnable", "identity"])
-def test_export_reproduces_a_straight_crf(tmp_path, kind) -> None:
+def test_export_reproduces_a_straight_crf(tmp_path: Path, kind: str) -> None:
     """With the CRF a straight line on [0, 1] (the learnable curve's linear
     start, the identity), a 3DGS renderer reproduces the run's render from the export: HDR
     colours are not clamped per Gaussian, so a bright Gaussian saturates the blended pixel as
@@ -401,7 +402,8 @@ def test_blend_response_continues_the_curve_linearly() -> None:
     assert float(srgb[-1]) == pytest.approx(1 + 3 * 1.055 / 2.4, rel=1e-9)
 
 
-def test_render_map_intrinsics_options(egs_run, tmp_path, capsys) -> None:
+def test_render_map_intrinsics_options(egs_run: RunFolder, tmp_path: Path,
+                                       capsys: pytest.CaptureFixture[str]) -> None:
     """``render-map --pose`` takes fx, fy, cx, cy as well as a field of
     view; an image rendered with the run's own intrinsics given as numbers equals the default,
     and a shifted principal point shifts the image."""

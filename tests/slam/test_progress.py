@@ -6,7 +6,7 @@ from egs_bench.slam.progress import COMPILING, PhaseProgress
 from tests.helpers.clock import FakeClock as _Clock
 
 
-def test_compiling_is_said_and_the_eta_ignores_the_compiling_iteration():
+def test_compiling_is_said_and_the_eta_ignores_the_compiling_iteration() -> None:
     clock, ready = _Clock(), [False]
     progress = PhaseProgress(lambda: ready[0], clock, cold_cache=lambda: True)
     assert progress.text("map init", 0, 150) == f"map init 0/150 iterations, {COMPILING}"
@@ -18,7 +18,7 @@ def test_compiling_is_said_and_the_eta_ignores_the_compiling_iteration():
     assert progress.text("map init", 50, 150) == "map init 50/150 iterations, ETA 100 s"
 
 
-def test_kernels_in_the_cache_are_not_said_to_compile_but_their_load_is_no_eta():
+def test_kernels_in_the_cache_are_not_said_to_compile_but_their_load_is_no_eta() -> None:
     clock, ready, asked = _Clock(), [False], []
     progress = PhaseProgress(lambda: ready[0], clock, cold_cache=lambda: asked.append(1) or False)
     assert progress.text("map init", 0, 150) == "map init 0/150 iterations"
@@ -30,14 +30,14 @@ def test_kernels_in_the_cache_are_not_said_to_compile_but_their_load_is_no_eta()
     assert progress.text("map init", 3, 150) == "map init 3/150 iterations, ETA 147 s"
 
 
-def test_the_default_cache_check_reads_numba_s_cache():
+def test_the_default_cache_check_reads_numba_s_cache() -> None:
     from egs_bench.kernel_cache import uncached_kernels
     from egs_bench.slam.progress import _render_kernels_uncached
 
     assert _render_kernels_uncached() == bool(uncached_kernels("egs_bench.render"))
 
 
-def test_a_later_phase_with_compiled_kernels_gets_an_eta_from_its_start():
+def test_a_later_phase_with_compiled_kernels_gets_an_eta_from_its_start() -> None:
     clock = _Clock()
     progress = PhaseProgress(lambda: True, clock)
     progress.text("map init", 0, 10)
@@ -49,7 +49,7 @@ def test_a_later_phase_with_compiled_kernels_gets_an_eta_from_its_start():
     assert progress.text("mapping", 4, 30) == "mapping 4/30 iterations, ETA 13 s"
 
 
-def test_without_a_readiness_check_nothing_is_said_to_compile():
+def test_without_a_readiness_check_nothing_is_said_to_compile() -> None:
     clock = _Clock()
     progress = PhaseProgress(None, clock)
     assert progress.text("mapping", 0, 4) == "mapping 0/4 iterations"
@@ -57,7 +57,7 @@ def test_without_a_readiness_check_nothing_is_said_to_compile():
     assert progress.text("mapping", 2, 4) == "mapping 2/4 iterations, ETA 1 s"
 
 
-def test_the_cpu_rasteriser_is_ready_once_it_has_rendered_and_back_propagated():
+def test_the_cpu_rasteriser_is_ready_once_it_has_rendered_and_back_propagated() -> None:
     import torch
 
     from egs_bench.render import rasterize

@@ -48,7 +48,8 @@ def tracker_wrapped(around) -> SlamComponents:
 
 
 @pytest.fixture(scope="module")
-def egs_run(tiny_room: Path, tmp_path_factory) -> tuple[RunFolder, Sequence]:
+def egs_run(tiny_room: Path, tmp_path_factory: pytest.TempPathFactory
+            ) -> tuple[RunFolder, Sequence]:
     seq = Sequence.open(tiny_room)
     cfg = methods.BUILTIN["egs"].config("cpu").replace(**FAST)
     run = run_slam(seq, tmp_path_factory.mktemp("runs") / "egs", method_name="egs", config=cfg,
@@ -82,7 +83,7 @@ def test_frame_without_velocity_gets_the_no_prior_iteration_budget(
 
 
 @pytest.mark.slow
-def test_egs_end_to_end_writes_complete_run(egs_run) -> None:
+def test_egs_end_to_end_writes_complete_run(egs_run: tuple[RunFolder, Sequence]) -> None:
     run, seq = egs_run
     assert run.read_status().state == "done"
     traj = run.read_trajectory()
@@ -105,7 +106,7 @@ def test_egs_end_to_end_writes_complete_run(egs_run) -> None:
 
 
 @pytest.fixture(scope="module")
-def small_room(tmp_path_factory) -> Path:
+def small_room(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """8 frames of the `demo` motion at half its resolution (112x64): ~2.6 cm and ~1 deg per
     frame through the furnished office, 25 ms exposure, events."""
     from egs_bench.datasets.synthetic import make_synthetic
@@ -198,7 +199,7 @@ def test_failure_marks_run_failed_or_interrupted(tiny_sequence: Path, tmp_path: 
     seq = Sequence.open(tiny_sequence)
     cfg = methods.BUILTIN["monogs"].config("cpu").replace(**FAST)
 
-    def boom(*_a):
+    def boom(*_a) -> None:
         raise exc
 
     with pytest.raises(type(exc)):
@@ -230,7 +231,8 @@ def test_interrupted_run_keeps_the_trajectory_of_the_processed_frames(
     np.testing.assert_allclose(traj.timestamps, seq.timestamps_s[:2])
 
 
-def test_registry_builtins_import_path_and_errors(tmp_path: Path, monkeypatch) -> None:
+def test_registry_builtins_import_path_and_errors(tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+                                                  ) -> None:
     names = registry.available_methods()
     for n in ("egs", "egs-no-event-tracking", "egs-no-event-mapping", "egs-no-events",
               "egs-no-crf", "egs-no-ne-loss", "monogs"):
@@ -257,7 +259,7 @@ def test_registry_builtins_import_path_and_errors(tmp_path: Path, monkeypatch) -
         cpu_preset().replace(blur_model=False).validate()  # events need sub-poses
 
 
-def test_cli_list_methods_and_bad_method(capsys) -> None:
+def test_cli_list_methods_and_bad_method(capsys: pytest.CaptureFixture[str]) -> None:
     runner = CliRunner()
     for argv in (["list-methods"], ["list", "methods"]):
         res = runner.invoke(app, argv)
@@ -409,7 +411,8 @@ def test_cli_run_set_overrides_reach_the_run_config(tiny_sequence: Path, tmp_pat
     assert isinstance(res.exception, ConfigError) and "lambda_d" in str(res.exception)
 
 
-def test_auto_preset_and_device(tiny_sequence: Path, tmp_path: Path, monkeypatch) -> None:
+def test_auto_preset_and_device(tiny_sequence: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+                                ) -> None:
     """Without --preset/--device a CPU machine runs the cpu budget on the CPU (the paper budget
     took over 6 minutes for frame 0 on 2 cores); CUDA, when present, gets the paper budget."""
     from egs_bench.slam.config import resolve_device, resolve_preset

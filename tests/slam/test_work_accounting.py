@@ -5,11 +5,13 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import Any
 
 import pytest
 
 import egs_bench.cli.data_cmds  # noqa: F401  (registers the commands)
 from egs_bench.datasets.sequence import Sequence
+from egs_bench.runs.folder import RunFolder
 from egs_bench.slam import methods
 from egs_bench.slam.levels import coarse_iterations
 from egs_bench.slam.runner import RunSettings, run_slam
@@ -23,7 +25,8 @@ BASE = dict(resolution_scale=1.0, init_iters=6, tracking_iters=8, mapping_iters=
             tracking_coarse_scale=1.0, mapping_coarse_scale=1.0)  # levels: where a test sets them
 
 
-def _run(seq_path: Path, out: Path, method: str = "egs", **options):
+def _run(seq_path: Path, out: Path, method: str = "egs", **options: Any
+         ) -> tuple[RunFolder, dict[str, Any]]:
     seq = Sequence.open(seq_path)
     cfg = methods.BUILTIN[method].config("cpu").replace(**{**BASE, **options})
     run = run_slam(seq, out, method_name=method, config=cfg,
@@ -32,11 +35,12 @@ def _run(seq_path: Path, out: Path, method: str = "egs", **options):
 
 
 @pytest.fixture(scope="module")
-def plain(tiny_room: Path, tmp_path_factory):
+def plain(tiny_room: Path, tmp_path_factory: pytest.TempPathFactory
+          ) -> tuple[RunFolder, dict[str, Any]]:
     return _run(tiny_room, tmp_path_factory.mktemp("work") / "plain")
 
 
-def test_tracking_counts_follow_the_iterations(plain):
+def test_tracking_counts_follow_the_iterations(plain: tuple[RunFolder, dict[str, Any]]) -> None:
     _, stats = plain
     per_frame = stats["work"]["per_frame"]
     assert len(per_frame) == stats["frames"]
@@ -56,7 +60,7 @@ def test_tracking_counts_follow_the_iterations(plain):
     assert all(rec["mapping"]["calls"] == BASE["mapping_iters"] for rec in mapped)
 
 
-def test_totals_add_up(plain):
+def test_totals_add_up(plain: tuple[RunFolder, dict[str, Any]]) -> None:
     _, stats = plain
     work = stats["work"]
     for key in ("cameras", "pixels", "blends_fwd"):
@@ -67,7 +71,8 @@ def test_totals_add_up(plain):
     assert work["per_frame_after_init"]["cameras"] == pytest.approx(mean)
 
 
-def test_coarse_tracking_renders_its_share_at_the_coarse_level(tiny_room, tmp_path):
+def test_coarse_tracking_renders_its_share_at_the_coarse_level(tiny_room: Path, tmp_path: Path
+                                                               ) -> None:
     _, stats = _run(tiny_room, tmp_path / "coarse", tracking_coarse_scale=0.5,
                     tracking_coarse_fraction=0.5)
     n, m = BASE["tracking_iters"], BASE["segments"] + 1
@@ -79,7 +84,8 @@ def test_coarse_tracking_renders_its_share_at_the_coarse_level(tiny_room, tmp_pa
                                                  + (n - coarse) * W * H)
 
 
-def test_coarse_mapping_renders_its_share_at_the_coarse_level(tiny_room, tmp_path):
+def test_coarse_mapping_renders_its_share_at_the_coarse_level(tiny_room: Path, tmp_path: Path
+                                                              ) -> None:
     _, stats = _run(tiny_room, tmp_path / "coarse_map", mapping_coarse_scale=0.5,
                     mapping_coarse_fraction=0.5)
     m, init = BASE["segments"] + 1, BASE["init_iters"]
@@ -88,7 +94,8 @@ def test_coarse_mapping_renders_its_share_at_the_coarse_level(tiny_room, tmp_pat
         coarse * (W // 2) * (H // 2) + (init - coarse) * W * H)
 
 
-def test_uncovered_insertion_adds_fewer_gaussians(plain, tiny_room, tmp_path):
+def test_uncovered_insertion_adds_fewer_gaussians(plain: tuple[RunFolder, dict[str, Any]],
+                                                  tiny_room: Path, tmp_path: Path) -> None:
     _, all_stats = plain
     _, uncovered = _run(tiny_room, tmp_path / "uncovered", insertion="uncovered")
     # the same map until the first keyframe inserts
@@ -99,7 +106,8 @@ def test_uncovered_insertion_adds_fewer_gaussians(plain, tiny_room, tmp_path):
     assert grown < grown_all
 
 
-def test_timing_keeps_compilation_and_frame_zero_apart(plain):
+def test_timing_keeps_compilation_and_frame_zero_apart(plain: tuple[RunFolder, dict[str, Any]]
+                                                       ) -> None:
     run, _ = plain
     timing = json.loads((run.path / "timing.json").read_text())
     assert timing["compile_s"] >= 0
@@ -108,7 +116,8 @@ def test_timing_keeps_compilation_and_frame_zero_apart(plain):
     assert timing["fps_after_init"] == pytest.approx((len(per_frame) - 1) / sum(per_frame[1:]))
 
 
-def test_info_shows_a_run_and_its_work(plain, capsys):
+def test_info_shows_a_run_and_its_work(plain: tuple[RunFolder, dict[str, Any]],
+                                       capsys: pytest.CaptureFixture[str]) -> None:
     from egs_bench.runs.summary import run_summary
 
     run, stats = plain
@@ -123,7 +132,8 @@ def test_info_shows_a_run_and_its_work(plain, capsys):
     assert "work per frame" in out and "speed" in out  # the labels fit any terminal width
 
 
-def test_compilation_is_not_in_the_frame_rate(tiny_room, tmp_path, monkeypatch):
+def test_compilation_is_not_in_the_frame_rate(tiny_room: Path, tmp_path: Path,
+                                              monkeypatch: pytest.MonkeyPatch) -> None:
     """A cold kernel cache (here: a preparation that takes 2 s) shows in compile_s, not in the
     SLAM loop's time that the FPS divides by."""
     import time
@@ -142,6 +152,7 @@ def test_compilation_is_not_in_the_frame_rate(tiny_room, tmp_path, monkeypatch):
 
 @pytest.mark.parametrize("iterations, fraction, expected", [
     (20, 0.85, 17), (30, 0.95, 28), (3, 0.85, 2), (1, 0.9, 0), (0, 0.5, 0), (10, 0.0, 0)])
-def test_coarse_iterations_always_end_at_the_fine_level(iterations, fraction, expected):
+def test_coarse_iterations_always_end_at_the_fine_level(iterations: int, fraction: float,
+                                                        expected: int) -> None:
     assert coarse_iterations(iterations, 0.25, fraction) == expected
     assert coarse_iterations(iterations, 1.0, fraction) == 0  # scale 1: no coarse level

@@ -13,6 +13,7 @@ these coordinates, so pictures are never mirrored.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -213,7 +214,8 @@ def _unit(v: np.ndarray) -> np.ndarray:
     return v / np.linalg.norm(v)
 
 
-def _face_row(center, normal, up, hw, hh) -> list[float]:
+def _face_row(center: Sequence[float] | np.ndarray, normal: Sequence[float] | np.ndarray,
+              up: Sequence[float] | np.ndarray, hw: float, hh: float) -> list[float]:
     n, u = _unit(np.asarray(normal, float)), _unit(np.asarray(up, float))
     r = np.cross(u, n)
     return [*center, *n, *u, *r, hw, hh]

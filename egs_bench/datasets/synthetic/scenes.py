@@ -46,12 +46,15 @@ def picture(texture: str, gain: float = 1.0) -> Material:
     return Material((gain, gain, gain), texture, tile=0.0)
 
 
-def glowing(texture: str, radiance: float, tint=(1.0, 1.0, 1.0)) -> Material:
+def glowing(texture: str, radiance: float,
+            tint: tuple[float, float, float] = (1.0, 1.0, 1.0)) -> Material:
     """A self-luminous photograph (screen, window view): emission = radiance * tint * texture."""
-    return Material((0.0, 0.0, 0.0), texture, tile=0.0, emission=tuple(radiance * c for c in tint))
+    emission = (radiance * tint[0], radiance * tint[1], radiance * tint[2])
+    return Material((0.0, 0.0, 0.0), texture, tile=0.0, emission=emission)
 
 
-def framed(face, s0, r0, s1, r1, material: Material, border: float = 0.04) -> list[Decal]:
+def framed(face: str | tuple[int, str], s0: float, r0: float, s1: float, r1: float,
+           material: Material, border: float = 0.04) -> list[Decal]:
     """A decal with a dark frame around it."""
     return [
         Decal(face, s0 - border, r0 - border, s1 + border, r1 + border, FRAME),
@@ -59,7 +62,8 @@ def framed(face, s0, r0, s1, r1, material: Material, border: float = 0.04) -> li
     ]
 
 
-def window(face, s0, r0, s1, r1, view: Material, bars: int = 1) -> list[Decal]:
+def window(face: str | tuple[int, str], s0: float, r0: float, s1: float, r1: float, view: Material,
+           bars: int = 1) -> list[Decal]:
     """A bright window: white frame, emissive view, ``bars`` vertical and one horizontal bar."""
     out = [
         Decal(face, s0 - 0.06, r0 - 0.06, s1 + 0.06, r1 + 0.06, WHITE),
