@@ -47,8 +47,8 @@ class MethodConfig:
     crf_nodes: int = 16                 # nodes of the learnable response curve
     crf_alpha: float = 0.01             # (paper)
     # Initial curve of the learnable CRF: "linear" (evenly spaced nodes, the identity; the paper
-    # does not say) or "srgb". Measured on `demo` (20 frames, cpu budget): the sRGB start
-    # tracked worse (raw error 6.4 vs 1.6 cm; docs/notes/slam.md).
+    # does not say) or "srgb". "linear" because the sRGB start tracked worse
+    # (docs/notes/slam_config_measurements_2026-12-04.md).
     crf_init: CrfInit = "linear"
     exposure_compensation: bool = True  # per-frame exp(a) I + b (MonoGS)
     theta: float | None = None          # event threshold; None = the sequence's pos/neg values
@@ -86,9 +86,9 @@ class TrackingConfig:
     # ... and the same for a frame whose exposure lasts less than this fraction of the time
     # since the previous exposure ended (0 = never). Its blur then spans a small fraction of
     # the inter-frame motion, below what the image resolves, so a free T_0 is barely
-    # constrained: on the unblurred `demo-sharp` (1 ms of 33 ms) T_0 and T_tau drifted 1-3 cm
-    # apart and egs tracked worse than monogs (docs/notes/slam.md). Blurred sequences (25 of
-    # 33 ms, ratio 0.75) keep both poses free, as in the paper, whose data are all blurred.
+    # constrained and drifts from T_tau on unblurred frames
+    # (docs/notes/slam_config_measurements_2026-12-04.md). Blurred sequences (25 of 33 ms,
+    # ratio 0.75) keep both poses free, as in the paper, whose data are all blurred.
     short_exposure_ratio: float = 0.5
     lr_exposure: float = 0.01           # (MonoGS)
     max_translation_jump: float = 0.5   # m between consecutive frames, else divergence
@@ -148,10 +148,9 @@ class BudgetConfig:
     tracking_iters: int = 100           # (MonoGS)
     # Iterations for a frame whose prediction has no velocity yet (frame 1 under the
     # constant-velocity model): its start is off by the whole inter-frame motion, not by the
-    # error of a prediction. None = tracking_iters, in both presets: 100 at the cpu budget
-    # fixed `office-l`'s failed start (120 frames, egs 3.26 -> 1.06 cm ATE) but moved `demo`'s
-    # frame 1 from 0.88 to 1.24 cm off (12-frame ATE 0.47 -> 1.22 cm), and no test on the
-    # first, short tracking told the two apart (docs/notes/slam.md finding 35).
+    # error of a prediction. None = tracking_iters, in both presets: a larger budget helped one
+    # sequence's start and hurt another's, and no test on the first, short tracking told the
+    # two apart (docs/notes/slam_config_measurements_2026-12-04.md).
     tracking_iters_no_prior: int | None = None
     lr_rot: float = 0.003               # (MonoGS)
     lr_trans: float = 0.001             # (MonoGS)
@@ -565,10 +564,9 @@ def paper_preset() -> SlamConfig:
 
 
 CPU_BUDGET = BudgetConfig(
-    # The sequence's full resolution, with most iterations at a coarse level: on `demo-blur`
-    # (24 frames, seeds 0-2) this budget gave egs 1.58 cm / 26.51 dB at 72.6 M blends per
-    # frame, against 2.68 cm / 25.18 dB at 77.3 M for the half resolution it replaces
-    # (docs/notes/engine_cost_2026-12-04.md). K = 3: each sub-pose is a render.
+    # The sequence's full resolution, with most iterations at a coarse level: more accurate
+    # than half the resolution at about the same rendering work
+    # (docs/notes/slam_config_measurements_2026-12-04.md). K = 3: each sub-pose is a render.
     resolution_scale=1.0,
     segments=3,
     # 20 tracking iterations with larger, decaying steps instead of 100 at MonoGS's rates; the
@@ -584,20 +582,19 @@ CPU_BUDGET = BudgetConfig(
     init_iters=150,
     mapping_coarse_scale=0.5,
     mapping_coarse_fraction=0.95,
-    # 30 iterations x 2 views per keyframe: with 10 x 2 the map lagged behind the new keyframes
-    # and both methods drifted (monogs on `demo`, 40 frames: raw error 12 -> 5 cm); 3 views
-    # cost a third more at no gain measured at this resolution (the note above).
+    # 30 iterations x 2 views per keyframe: with fewer iterations the map lagged behind the new
+    # keyframes and both methods drifted; a third view cost more and gained nothing measurable
+    # at this resolution (the note above).
     mapping_iters=30,
     views_per_iter=2,
     prune_every=20,
     prune_offset=19,
     # 1 in 2 valid pixels at frame 0, 1 in 8 at keyframes: sparser maps at the full resolution
-    # tracked worse (1 in 4 / 16: egs 2.59 cm on demo-blur and 1.44 cm on the 112x64 room of
-    # the end-to-end test, whose bound is 1.37; 1 in 8 / 32: 5.9-7.1 cm on demo-blur), though
-    # half the map costs 1.14x instead of 1.6x the old default's CPU time.
+    # tracked worse, and the end-to-end test's accuracy bound failed (the note above).
     pcd_downsample_init=2,
     pcd_downsample=8,
-    # 16 edge-mask blocks, as measured (MonoGS uses 32 on Replica's 1200x680).
+    # 16 edge-mask blocks, measured at this budget's resolution (MonoGS uses 32 on Replica's
+    # 1200x680).
     edge_blocks=16,
     # Larger Gaussian steps for 30 instead of 150 iterations per keyframe.
     lr_colors=0.01,

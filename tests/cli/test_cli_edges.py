@@ -7,6 +7,7 @@ from __future__ import annotations
 import inspect
 import shutil
 from pathlib import Path
+from typing import Any
 
 import pytest
 import yaml
@@ -83,7 +84,7 @@ def test_every_command_has_a_bracket_case(tmp_path: Path) -> None:
 
 
 @pytest.mark.parametrize("command", sorted(_bad_path_cases(Path("/nonexistent"), make=False)))
-def test_bracketed_paths_are_named_literally_in_one_line(command, tmp_path: Path,
+def test_bracketed_paths_are_named_literally_in_one_line(command: Any, tmp_path: Path,
                                                          capsys: pytest.CaptureFixture[str],
                                                          monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.chdir(tmp_path)
@@ -93,7 +94,7 @@ def test_bracketed_paths_are_named_literally_in_one_line(command, tmp_path: Path
 
 
 @pytest.mark.parametrize("command", sorted(LISTINGS))
-def test_listings_print(command, capsys: pytest.CaptureFixture[str]) -> None:
+def test_listings_print(command: Any, capsys: pytest.CaptureFixture[str]) -> None:
     code, out, err = run_cli(capsys, command)
     assert code == 0 and out and not err
 
@@ -121,7 +122,7 @@ def test_library_messages_keep_their_brackets(monkeypatch: pytest.MonkeyPatch,
     """Text the library wrote with brackets (an install hint) reaches the user whole."""
     from egs_bench.errors import ConfigError
 
-    def refuse(*_args, **_kwargs) -> None:
+    def refuse(*_args: Any, **_kwargs: Any) -> None:
         raise ConfigError("backend 'gsplat' needs gsplat 1.5.3: pip install 'egs-bench[cuda]'")
 
     monkeypatch.setattr("egs_bench.datasets.registry.load_sequence", refuse)
@@ -155,7 +156,8 @@ def test_library_messages_keep_their_brackets(monkeypatch: pytest.MonkeyPatch,
     (["run", "-m", "monogs", "-s", "x", "--nosuch"], "--nosuch"),
     (["make-calib", "-o", "c.yaml", "--preset", "foo"], "--preset 'foo'"),
 ])
-def test_bad_option_values_are_one_line_naming_the_option(argv, option: str, tmp_path: Path,
+def test_bad_option_values_are_one_line_naming_the_option(argv: list[Any], option: str,
+                                                          tmp_path: Path,
                                                           capsys: pytest.CaptureFixture[str],
                                                           monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.chdir(tmp_path)

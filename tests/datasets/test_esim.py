@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import pytest
 from scipy import ndimage, stats
@@ -389,7 +391,7 @@ def test_simulator_does_not_alias_caller_arrays() -> None:
 
 
 @pytest.mark.parametrize("dt", [1000, 10**6])  # counting sort / comparison sort paths
-def test_event_ordering_merges_crossings_and_noise_by_time_then_pixel(dt) -> None:
+def test_event_ordering_merges_crossings_and_noise_by_time_then_pixel(dt: Any) -> None:
     rng = np.random.default_rng(13)
     h, w = 5, 6
 

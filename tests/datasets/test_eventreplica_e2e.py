@@ -4,6 +4,7 @@ into a canonical sequence by the library and by the CLI; the latent source's con
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -158,7 +159,7 @@ def test_cli_several_scenes(
 )
 def test_cli_bad_options(
         replica_dir: tuple[Path, dict[str, tuple[list[np.ndarray], list[np.ndarray], np.ndarray]]],
-        tmp_path: Path, capsys: pytest.CaptureFixture[str], args, message: str
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], args: list[Any], message: str
 ) -> None:
     root, _ = replica_dir
     code = main(["make-eventreplica", "--input", str(root / "sceneA"), "--out",

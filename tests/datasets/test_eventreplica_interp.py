@@ -6,6 +6,8 @@ interpolated pose: a static Lambertian scene, so that render is the true in-betw
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import pytest
 
@@ -57,7 +59,8 @@ def _psnr(x: np.ndarray, y: np.ndarray, mask: np.ndarray | None = None) -> float
 
 
 @pytest.mark.parametrize("make", [DepthWarpInterpolator, FlowInterpolator], ids=["depth", "flow"])
-def test_exact_at_key_frames(pair: tuple[KeyFrame, KeyFrame, np.ndarray, np.ndarray], make) -> None:
+def test_exact_at_key_frames(pair: tuple[KeyFrame, KeyFrame, np.ndarray, np.ndarray], make: Any
+                             ) -> None:
     a, b, _, _ = pair
     interp = make().prepare(a, b, INTR)
     rgb0, d0 = interp(0.0)

@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import cv2
 import numpy as np
@@ -83,7 +85,7 @@ def test_jpeg_layout_as_nice_slam(tmp_path: Path) -> None:
 # --- bad input: each raises InputError naming the file and the problem ----------------------------
 
 
-def _expect(path: Path, *words: str, **kwargs):
+def _expect(path: Path, *words: str, **kwargs: Any):
     with pytest.raises(InputError) as info:
         read_replica(path, **kwargs)
     return info.value
@@ -148,7 +150,7 @@ def test_gap_in_numbering(tmp_path: Path) -> None:
     ],
     ids=["short", "text", "nan", "last-row", "not-rotation"],
 )
-def test_bad_traj_line(tmp_path: Path, mutate, expected) -> None:
+def test_bad_traj_line(tmp_path: Path, mutate: Callable[..., Any], expected: str) -> None:
     path = _scene(tmp_path)
     lines = (path / "traj.txt").read_text().splitlines()
     lines[1] = " ".join(mutate(lines[1].split()))

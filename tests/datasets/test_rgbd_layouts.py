@@ -7,6 +7,7 @@ from __future__ import annotations
 import os
 import shutil
 from pathlib import Path
+from typing import Any
 
 import cv2
 import numpy as np
@@ -387,8 +388,8 @@ def test_bad_generic_input_is_one_line_naming_the_file(tiny_sequence: Path, tmp_
     (["--input", "X", "--tum-camera", "fr1"], "need --layout tum-rgbd or generic"),
 ])
 def test_bad_layout_options_are_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str],
-                                         monkeypatch: pytest.MonkeyPatch, args, message: str
-                                         ) -> None:
+                                         monkeypatch: pytest.MonkeyPatch, args: list[Any],
+                                         message: str) -> None:
     monkeypatch.chdir(tmp_path)
     code = main(["make-eventreplica", "--out", str(tmp_path / "out"), "--quiet", *args])
     assert_cli_error(code, capsys.readouterr().err, 2, message)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import pytest
 from skimage import data as skdata
@@ -21,7 +23,7 @@ from egs_bench.geometry import Intrinsics, invert_pose
 GREY = Material((0.5, 0.5, 0.5))
 
 
-def _box_room(half: float = 10.0, **kwargs) -> Scene:
+def _box_room(half: float = 10.0, **kwargs: Any) -> Scene:
     """A large empty cube room centred at the origin, plain walls, ambient light only."""
     walls = {f: GREY for f in ("x-", "x+", "y-", "y+", "floor", "ceiling")}
     return Scene(name="test", description="test room", lo=(-half, -half, -half),

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -139,7 +140,7 @@ def test_tum_trajectory_is_retimed_and_placed_at_the_anchor(shared_data: Path) -
     np.testing.assert_allclose(invert_pose(seq_poses[0]) @ seq_poses[1], rel_file, atol=1e-9)
 
 
-def _tiny(scene: str, out: Path, **kwargs) -> Path:
+def _tiny(scene: str, out: Path, **kwargs: Any) -> Path:
     options = dict(frames=3, width=40, height=24, supersample=1, progress=False)
     options.update(kwargs)
     return make_synthetic(scene, out, **options)

@@ -5,6 +5,7 @@ import subprocess
 import sys
 import zipfile
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -27,8 +28,8 @@ def _evo_ape_cli(gt: Path, est: Path, extra: list[str], tmp_path: Path) -> dict:
 
 
 @pytest.mark.parametrize(("est_name", "gt_name"), PAIRS)
-def test_ate_equals_evo_ape_cli_se3(request: pytest.FixtureRequest, tmp_path: Path, est_name,
-                                    gt_name) -> None:
+def test_ate_equals_evo_ape_cli_se3(request: pytest.FixtureRequest, tmp_path: Path, est_name: Any,
+                                    gt_name: Any) -> None:
     est, gt = pair_paths(request, tmp_path, est_name, gt_name)
     ref = _evo_ape_cli(gt, est, ["-a"], tmp_path)
     ours = ate_from_files(est, gt, align="se3")
@@ -38,8 +39,8 @@ def test_ate_equals_evo_ape_cli_se3(request: pytest.FixtureRequest, tmp_path: Pa
 
 
 @pytest.mark.parametrize(("est_name", "gt_name"), [SYNTHETIC, REAL[0]])
-def test_ate_equals_evo_ape_cli_sim3(request: pytest.FixtureRequest, tmp_path: Path, est_name,
-                                     gt_name) -> None:
+def test_ate_equals_evo_ape_cli_sim3(request: pytest.FixtureRequest, tmp_path: Path, est_name: Any,
+                                     gt_name: Any) -> None:
     est, gt = pair_paths(request, tmp_path, est_name, gt_name)
     ref = _evo_ape_cli(gt, est, ["-as"], tmp_path)
     ours = ate_from_files(est, gt, align="sim3")

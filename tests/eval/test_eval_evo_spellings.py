@@ -6,6 +6,7 @@ import io
 import json
 import zipfile
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -59,8 +60,9 @@ CASES = [
 
 @pytest.mark.parametrize(("est_name", "gt_name"), [SYNTHETIC, REAL[0]])
 @pytest.mark.parametrize(("command", "extra"), CASES, ids=[" ".join(c[1]) for c in CASES])
-def test_evo_spellings_give_evos_numbers(request: pytest.FixtureRequest, tmp_path: Path, command,
-                                         extra, est_name, gt_name) -> None:
+def test_evo_spellings_give_evos_numbers(request: pytest.FixtureRequest, tmp_path: Path,
+                                         command: Any, extra: Any, est_name: Any, gt_name: Any
+                                         ) -> None:
     est, gt = pair_paths(request, tmp_path, est_name, gt_name)
     ref = _evo(command, gt, est, extra, tmp_path / "evo.zip")
     ours = tmp_path / "ours.json"
@@ -106,7 +108,7 @@ def test_save_results_follows_the_output_rules(shared_data: Path, tmp_path: Path
 
 @pytest.mark.parametrize(("est_name", "gt_name"), [SYNTHETIC, REAL[0]])
 def test_python_api_in_gt_est_order_equals_evos_api(request: pytest.FixtureRequest, tmp_path: Path,
-                                                    est_name, gt_name) -> None:
+                                                    est_name: Any, gt_name: Any) -> None:
     from evo.core import metrics, sync
     from evo.main_ape import ape
     from evo.main_rpe import rpe

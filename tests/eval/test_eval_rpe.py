@@ -6,6 +6,7 @@ import subprocess
 import sys
 import zipfile
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -58,16 +59,16 @@ def _assert_same(ours, ref_zip: zipfile.ZipFile) -> None:
 
 @pytest.mark.parametrize(("est_name", "gt_name"), PAIRS)
 @pytest.mark.parametrize(("ours", "evo_args"), OPTIONS)
-def test_rpe_equals_evo_rpe(request: pytest.FixtureRequest, tmp_path: Path, est_name, gt_name, ours,
-                            evo_args) -> None:
+def test_rpe_equals_evo_rpe(request: pytest.FixtureRequest, tmp_path: Path, est_name: Any,
+                            gt_name: Any, ours: Any, evo_args: Any) -> None:
     est, gt = pair_paths(request, tmp_path, est_name, gt_name)
     with _evo_rpe_function(gt, est, evo_args, tmp_path / "res.zip") as ref:
         _assert_same(rpe_from_files(est, gt, **ours), ref)
 
 
 @pytest.mark.parametrize(("est_name", "gt_name"), [SYNTHETIC, REAL[1]])
-def test_rpe_equals_evo_rpe_executable(request: pytest.FixtureRequest, tmp_path: Path, est_name,
-                                       gt_name) -> None:
+def test_rpe_equals_evo_rpe_executable(request: pytest.FixtureRequest, tmp_path: Path,
+                                       est_name: Any, gt_name: Any) -> None:
     est, gt = pair_paths(request, tmp_path, est_name, gt_name)
     evo_rpe = Path(sys.executable).parent / "evo_rpe"
     out = tmp_path / "res.zip"

@@ -140,7 +140,8 @@ def _set(path: tuple[str, ...], value: Any):
     (_set(("schema_version",), "1"), "'schema_version' must be an integer, found '1'"),
 ])
 def test_a_wrong_field_is_one_line_naming_the_file(evaluated: tuple[Path, dict[str, Any]],
-                                                   tmp_path: Path, change, problem) -> None:
+                                                   tmp_path: Path, change: Any, problem: str
+                                                   ) -> None:
     folder = _rewrite(evaluated[0], tmp_path / "bad", change)
     with pytest.raises(InputError) as info:
         read_metrics(folder)
@@ -154,8 +155,8 @@ def test_a_wrong_field_is_one_line_naming_the_file(evaluated: tuple[Path, dict[s
     (b"\x89PNG\r\n\x1a\n\x00\xff", "not a UTF-8 text file (binary or corrupt)"),
     (b"[1, 2]", "not an egs-bench metrics file (no 'protocol'/'ate')"),
 ])
-def test_a_missing_or_unreadable_file_is_one_line_naming_it(tmp_path: Path, content, problem: str
-                                                            ) -> None:
+def test_a_missing_or_unreadable_file_is_one_line_naming_it(tmp_path: Path, content: bytes | None,
+                                                            problem: str) -> None:
     if content is not None:
         (tmp_path / "metrics.json").write_bytes(content)
     with pytest.raises(InputError) as info:

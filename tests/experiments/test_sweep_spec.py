@@ -1,6 +1,7 @@
 """Sweep files: validation with one-line errors, expansion, stable names, hashes, shards, slots."""
 
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -38,7 +39,7 @@ def seqs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     ({"methods": ["egs"], "sequences": ["a"], "protocol": ["egs"]}, "unknown protocol ['egs']"),
     (["egs"], "must be a YAML mapping"),
 ])
-def test_sweep_file_errors_name_the_file(tmp_path: Path, data, message: str) -> None:
+def test_sweep_file_errors_name_the_file(tmp_path: Path, data: Any, message: str) -> None:
     with pytest.raises(InputError) as err:
         parse_sweep(data, tmp_path / "s.yaml")
     assert message in str(err.value) and str(tmp_path / "s.yaml") in str(err.value)
@@ -218,7 +219,7 @@ def test_a_repeated_sigterm_during_the_interruption_record_is_ignored(
     from egs_bench.experiments import worker
     from egs_bench.interrupts import signals_interrupt
 
-    def sigterm_self(*_args, **_kwargs) -> None:
+    def sigterm_self(*_args: Any, **_kwargs: Any) -> None:
         os.kill(os.getpid(), signal.SIGTERM)
 
     write_record = worker.write_record

@@ -7,6 +7,7 @@ import math
 import os
 import threading
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -23,7 +24,7 @@ def seqs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     return {"a": make_sequence(root, "sa", 6, 0)}
 
 
-def _run(seqs, out: Path, **extra) -> RunSpec:
+def _run(seqs, out: Path, **extra: Any) -> RunSpec:
     spec = parse_sweep({"methods": [GOOD_PATH], "sequences": ["a"], **extra},
                        "s.yaml")
     return expand(spec, seqs, out)[0]
@@ -44,7 +45,7 @@ def test_a_failed_evaluation_fails_the_run_and_retry_evaluates_again(tmp_path: P
 
     run = _run(seqs, tmp_path)
     with monkeypatch.context() as m:
-        def broken(*_args, **_kwargs) -> None:
+        def broken(*_args: Any, **_kwargs: Any) -> None:
             raise ValueError("degenerate alignment")
 
         m.setattr(evaluate, "evaluate_run", broken)

@@ -6,6 +6,7 @@ files are collected.)"""
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 
 class PlaneSource:
@@ -53,7 +54,7 @@ class PlaneSource:
         return LatentFrame(rgb=rgb.astype(np.float32), depth=depth, pose=pose)
 
 
-def make_plane_sequence(out: Path, frames: int = 4, **kwargs) -> Path:
+def make_plane_sequence(out: Path, frames: int = 4, **kwargs: Any) -> Path:
     """Generate a tiny canonical sequence of the :class:`PlaneSource` scene (30 fps, 15 ms)."""
     import numpy as np
 

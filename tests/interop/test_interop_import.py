@@ -8,6 +8,7 @@ from __future__ import annotations
 import json
 import shutil
 from pathlib import Path
+from typing import Any
 
 import cv2
 import numpy as np
@@ -345,7 +346,8 @@ def test_rampvo_bad_files(seq: Sequence, tmp_path: Path) -> None:
     ({"trj_id": [0, 1, 2], "trj_est": [(2 * np.eye(4)).tolist()] * 3}, "not a rigid"),
     ({"trj_id": [0, 0, 1], "trj_est": [np.eye(4).tolist()] * 3}, "repeated ids"),
 ])
-def test_monogs_bad_json(seq: Sequence, tmp_path: Path, content, message) -> None:
+def test_monogs_bad_json(seq: Sequence, tmp_path: Path, content: dict[str, Any], message: str
+                         ) -> None:
     path = tmp_path / "trj_final.json"
     path.write_text(json.dumps(content))
     with pytest.raises(InputError, match=message):

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -57,7 +58,8 @@ def test_round_trip(tmp_path: Path) -> None:
     ({"time_offsets_us": {"imu": 5}}, "time_offsets_us: unknown keys imu"),
     ({"T_event_rgb": None}, "unknown keys: T_event_rgb"),
 ])
-def test_bad_calibration_names_file_and_problem(tmp_path: Path, change, message: str) -> None:
+def test_bad_calibration_names_file_and_problem(tmp_path: Path, change: dict[str, Any], message: str
+                                                ) -> None:
     with pytest.raises(InputError, match=message) as info:
         load_calib(_write(tmp_path, {**GOOD, **change}))
     assert str(info.value).startswith(str(tmp_path / "calib.yaml"))
@@ -76,7 +78,8 @@ def test_bad_calibration_names_file_and_problem(tmp_path: Path, change, message:
     ("depth_camera", {"depth_camera": "event"},
      "depth_camera: event .* T_event_depth must be absent or the identity"),
 ])
-def test_missing_calibration_values_are_refused(tmp_path: Path, drop, add, message) -> None:
+def test_missing_calibration_values_are_refused(tmp_path: Path, drop: str | None,
+                                                add: dict[str, Any], message: str) -> None:
     """Values that move poses, depth or times have no silent default (identity, 0): the file
     and the key are named."""
     data = {k: v for k, v in GOOD.items() if k != drop}

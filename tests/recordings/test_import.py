@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 import shutil
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -45,7 +46,7 @@ def rig(tmp_path_factory: pytest.TempPathFactory) -> Rig:
     return make_rig(tmp_path_factory.mktemp("rig"))
 
 
-def _spec(rig: Rig, **kw) -> RecordingSpec:
+def _spec(rig: Rig, **kw: Any) -> RecordingSpec:
     args = dict(events=rig.bag, depth=rig.bag, gt=rig.bag, calib=rig.calib, preset=PRESET,
                 camera_info_topic="/dvs/camera_info")
     args.update(kw)
@@ -159,7 +160,7 @@ def test_rig_meta_records_source_and_sensors(rig: Rig, imported: Path) -> None:
 
 
 # ------------------------------------------------------------------ bad input
-def _write_calib(path: Path, **changes) -> Path:
+def _write_calib(path: Path, **changes: Any) -> Path:
     data = calib_dict()
     data.update(changes)
     path.write_text(yaml.safe_dump(data))

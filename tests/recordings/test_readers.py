@@ -4,6 +4,7 @@ bags written here with rosbags; DSEC-style HDF5 with Blosc/Zstd through hdf5plug
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import h5py
 import hdf5plugin
@@ -204,7 +205,7 @@ def test_truncated_bag_is_reported(tmp_path: Path) -> None:
 # ------------------------------------------------------------------ DSEC-style HDF5
 @pytest.mark.parametrize("compression", [hdf5plugin.Blosc(cname="zstd"), hdf5plugin.Zstd()],
                          ids=["blosc", "zstd"])
-def test_dsec_events_h5_with_compression_filter(tmp_path: Path, compression) -> None:
+def test_dsec_events_h5_with_compression_filter(tmp_path: Path, compression: Any) -> None:
     """DSEC layout: t uint32 us relative to t_offset, p uint8, ms_to_idx; Blosc/Zstd filters."""
     rng = np.random.default_rng(2)
     n = 20_000

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -45,8 +46,8 @@ def test_render_map_writes_png(tmp_path: Path, plane_ply: Path, capsys: pytest.C
      "'--backend': Value error, 'cuda-magic' is not one of 'auto', 'numba', 'gsplat'"),
 ])
 def test_render_map_reports_bad_input_in_one_line(tmp_path: Path, plane_ply: Path,
-                                                  capsys: pytest.CaptureFixture[str], argv,
-                                                  code: int, message: str) -> None:
+                                                  capsys: pytest.CaptureFixture[str],
+                                                  argv: list[Any], code: int, message: str) -> None:
     out = tmp_path / "v.png"
     argv = [a.replace("{tmp}", str(tmp_path)).replace("{ply}", str(plane_ply)) for a in argv]
     got, _, err = run_cli(capsys, "render-map", *argv, "-o", out)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import pytest
 import torch
@@ -15,7 +16,7 @@ from tests.helpers.render_scenes import random_scene
 FIELDS = ("rgb", "depth", "expected_depth", "alpha")
 
 
-def _both(scene, **kw):
+def _both(scene, **kw: Any):
     return rasterize(**scene, backend="reference", **kw), rasterize(**scene, backend="numba", **kw)
 
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 import importlib.util
 import json
 from pathlib import Path
+from typing import Any
 
 import h5py
 import numpy as np
@@ -42,7 +43,8 @@ def _set_meta(seq: Path, **changes: object) -> None:
 ])
 def test_implausible_metadata_is_refused_where_it_is_read(seq_copy: Path,
                                                           capsys: pytest.CaptureFixture[str],
-                                                          change, message: str) -> None:
+                                                          change: dict[str, Any], message: str
+                                                          ) -> None:
     _set_meta(seq_copy, **change)
     code, _, err = run_cli(capsys, "info", seq_copy)
     assert_cli_error(code, err, 3, f"{seq_copy / 'meta.yaml'}: {message}")
@@ -81,8 +83,8 @@ def test_inconsistent_ms_to_idx_is_refused(seq_copy: Path, capsys: pytest.Captur
     ("keyframes.txt", BINARY, "keyframes.txt: not a UTF-8 text file"),
     ("run.yaml", b"method: m\nsequence: {name: s, path: 5}\n", "'sequence.path' must be a path"),
 ])
-def test_broken_run_files_are_named(done_run: RunFolder, capsys: pytest.CaptureFixture[str], name,
-                                    content, message) -> None:
+def test_broken_run_files_are_named(done_run: RunFolder, capsys: pytest.CaptureFixture[str],
+                                    name: str, content: Any, message: str) -> None:
     (done_run.path / name).write_bytes(content)
     code, _, err = run_cli(capsys, "eval", done_run.path)
     assert_cli_error(code, err, 3, done_run.path / name, message)
@@ -157,7 +159,7 @@ def test_exit_codes_tell_usage_data_and_internal_errors_apart(tiny_sequence: Pat
     code, _, err = run_cli(capsys, "info", Path(tiny_sequence) / "missing")
     assert_cli_error(code, err, 3, Path(tiny_sequence) / "missing")
 
-    def bug(*_args, **_kwargs) -> None:
+    def bug(*_args: Any, **_kwargs: Any) -> None:
         raise ValueError("shape mismatch in a kernel")
 
     monkeypatch.setattr("egs_bench.datasets.inspect.sequence_summary", bug)

@@ -8,6 +8,7 @@ from __future__ import annotations
 import os
 import signal
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -133,7 +134,7 @@ def test_a_generator_with_a_swallowed_signal_exits_as_interrupted(
 
     add_frame = SequenceWriter.add_frame
 
-    def add_frame_then_signal(self, *args, **kwargs) -> None:
+    def add_frame_then_signal(self, *args: Any, **kwargs: Any) -> None:
         add_frame(self, *args, **kwargs)
         _swallowed_sigterm()
 
@@ -229,7 +230,7 @@ def test_a_signal_swallowed_in_map_initialisation_stops_it(tmp_path: Path, room_
     mappers: list[Mapper] = []
 
     class SignalInFirstIteration(Mapper):
-        def optimise(self, *args, report=None, **kwargs) -> float:
+        def optimise(self, *args: Any, report=None, **kwargs: Any) -> float:
             def report_then_signal(done: int, total: int) -> None:
                 if done == 0:
                     _swallowed_sigterm()

@@ -5,7 +5,9 @@ or a ``depth_scale`` that puts every depth kilometres away), naming the file."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -64,7 +66,8 @@ def test_a_clean_folder_becomes_a_sequence(tmp_path: Path, capsys: pytest.Captur
     (lambda lines: [lines[0], lines[1], lines[2], lines[2].replace(".png", "b.png"), *lines[3:]],
      "line 4: time stamp 1.033333 of rgb/1.033333b.png is also the stamp of rgb/1.033333.png"),
 ], ids=["out-of-order", "repeated"])
-def test_out_of_order_and_repeated_stamps_are_refused(edit, message, tmp_path: Path,
+def test_out_of_order_and_repeated_stamps_are_refused(edit: Callable[..., Any], message: str,
+                                                      tmp_path: Path,
                                                       capsys: pytest.CaptureFixture[str]) -> None:
     folder = _tum_folder(tmp_path / "tum")
     lines = (folder / "rgb.txt").read_text().splitlines()

@@ -10,6 +10,7 @@ import socket
 import threading
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -222,7 +223,7 @@ def test_progress_rides_on_the_heartbeat_and_stays_in_the_final_status(
 
 @pytest.mark.parametrize("progress", [{"done": 4}, {"done": 5, "total": 4}, [1, 2],
                                       {"done": -1, "total": 4}, {"done": True, "total": 4}])
-def test_a_malformed_progress_names_the_file(done_run: RunFolder, progress) -> None:
+def test_a_malformed_progress_names_the_file(done_run: RunFolder, progress: Any) -> None:
     data = _status(done_run.path)
     (done_run.path / "status.json").write_text(json.dumps({**data, "progress": progress}))
     with pytest.raises(InputError, match="status.json.*'progress' must be"):

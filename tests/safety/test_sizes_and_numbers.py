@@ -8,6 +8,7 @@ import dataclasses
 import json
 import typing
 from pathlib import Path
+from typing import Any
 
 import pytest
 import yaml
@@ -31,7 +32,7 @@ def _integer_fields() -> list[str]:
 
 
 @pytest.mark.parametrize("key", _integer_fields())
-def test_every_count_has_an_upper_bound(key) -> None:
+def test_every_count_has_an_upper_bound(key: Any) -> None:
     base = config.cpu_preset()
     with pytest.raises(ConfigError, match=key):
         base.replace(**{key: HUGE}).validate()

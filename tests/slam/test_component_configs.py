@@ -61,7 +61,7 @@ def _run(args: list[str], capsys) -> tuple[int, str]:
 
 
 def test_a_plugins_field_is_set_checked_and_recorded(tiny_sequence: Path, tmp_path: Path,
-                                                     capsys) -> None:
+                                                     capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "n1"
     code, err = _run(["--method", METHOD_PATH, "--seq", str(tiny_sequence), "--out", str(out),
                       *QUICK, "--set", "keyframes.n=1"], capsys)
@@ -126,7 +126,9 @@ def test_config_yaml_names_each_component_so_an_oracle_run_differs_from_egs() ->
 
 @pytest.mark.parametrize("method", ["egs", METHOD_PATH])
 def test_run_config_reproduces_the_trajectory_byte_for_byte(method: str, tiny_sequence: Path,
-                                                            tmp_path: Path, capsys) -> None:
+                                                            tmp_path: Path,
+                                                            capsys: pytest.CaptureFixture[str]
+                                                            ) -> None:
     first, again = tmp_path / "first", tmp_path / "again"
     code, err = _run(["--method", method, "--seq", str(tiny_sequence), "--out", str(first),
                       *QUICK, "--set", "lambda_d=0.2", "--max-frames", "3"], capsys)
@@ -143,8 +145,9 @@ def test_run_config_reproduces_the_trajectory_byte_for_byte(method: str, tiny_se
     assert_cli_error(code, err, 2, "--config re-runs the stored --seed")
 
 
-def test_run_config_refuses_a_run_made_with_other_components(tiny_sequence: Path,
-                                                             tmp_path: Path, capsys) -> None:
+def test_run_config_refuses_a_run_made_with_other_components(tiny_sequence: Path, tmp_path: Path,
+                                                             capsys: pytest.CaptureFixture[str]
+                                                             ) -> None:
     first = tmp_path / "first"
     code, err = _run(["--method", "egs", "--seq", str(tiny_sequence), "--out", str(first),
                       *QUICK, "--max-frames", "2"], capsys)
@@ -157,9 +160,9 @@ def test_run_config_refuses_a_run_made_with_other_components(tiny_sequence: Path
     assert_cli_error(code, err, 2, "the run's tracker are not those of method 'egs'")
 
 
-def test_a_config_yaml_in_the_earlier_layouts_still_loads_and_reruns(tiny_sequence: Path,
-                                                                      tmp_path: Path,
-                                                                      capsys) -> None:
+def test_a_config_yaml_in_the_earlier_layouts_still_loads_and_reruns(
+        tiny_sequence: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     """The layout written before components were recorded (groups, no ``components``) re-runs
     to the same trajectory; the flat layout of earlier versions (``kf_interval``,
     ``n_segments``, unique field names) loads to the same configuration."""

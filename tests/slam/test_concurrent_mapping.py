@@ -7,6 +7,7 @@ from __future__ import annotations
 import os
 import signal
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -47,7 +48,7 @@ def six_frames(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return make_plane_sequence(tmp_path_factory.mktemp("six") / "plane", frames=6)
 
 
-def _config(mode: str, **changes):
+def _config(mode: str, **changes: Any):
     return methods.BUILTIN["egs"].config("cpu").replace(
         **{**FAST, "mapping_mode": mode, **changes}).validate()
 
@@ -125,13 +126,13 @@ def test_a_mapper_without_rounds_is_refused_before_the_run(tiny_sequence: Path) 
     """Concurrent mapping runs a mapper's rounds in slices: a mapper without begin_round is
     not a MapOptimiser and is refused when the system is built, in either mode."""
     class Plain:
-        def __init__(self, *args) -> None:
+        def __init__(self, *args: Any) -> None:
             pass
 
-        def optimise(self, *args, **kwargs) -> float:
+        def optimise(self, *args: Any, **kwargs: Any) -> float:
             return 0.0
 
-        def refine(self, *args, **kwargs) -> float:
+        def refine(self, *args: Any, **kwargs: Any) -> float:
             return 0.0
 
     for mode in ("concurrent", "sequential"):
@@ -148,7 +149,7 @@ def test_a_signal_during_a_mapping_slice_stops_the_run_marked_interrupted(
     from egs_bench.interrupts import signals_interrupt
 
     class SignalInSlice(Mapper):
-        def begin_round(self, *args, **kwargs):
+        def begin_round(self, *args: Any, **kwargs: Any):
             round_ = super().begin_round(*args, **kwargs)
             if round_.initial:  # map initialisation runs before any frame is tracked
                 return round_

@@ -13,6 +13,7 @@ from __future__ import annotations
 import importlib
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import pytest
 import torch
@@ -32,7 +33,7 @@ def stray_tensors_on_meta(monkeypatch: pytest.MonkeyPatch) -> Iterator[None]:
     numba_backend = importlib.import_module("egs_bench.render.numba_backend")
     composite = numba_backend.composite_tiles
 
-    def on_cpu(*args, **kwargs):
+    def on_cpu(*args: Any, **kwargs: Any):
         with torch.device("cpu"):
             return composite(*args, **kwargs)
 

@@ -6,6 +6,8 @@ scored on it)."""
 from __future__ import annotations
 
 import re
+import sys
+import types
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -30,16 +32,20 @@ def guide_folder(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 @pytest.fixture(scope="module")
 def guide_namespace(guide_folder: Path) -> Iterator[dict]:
-    """The guide's code blocks run once, in order, in ``guide_folder``; the methods they
-    register are removed afterwards."""
+    """The guide's code blocks run once, in order, in ``guide_folder``, as the module
+    ``guide`` (what a reader's own module would be: its classes have import paths); the
+    methods they register are removed afterwards."""
     from egs_bench.runs import registry
 
-    namespace: dict = {"__name__": "guide"}
+    module = types.ModuleType("guide")
+    namespace: dict = module.__dict__
     with pytest.MonkeyPatch.context() as patch:
         patch.chdir(guide_folder)
+        patch.setitem(sys.modules, "guide", module)
         try:
             for block in guide_code():
-                exec(compile(block, str(GUIDE), "exec"), namespace)  # the guide's code
+                # dont_inherit: the guide's code runs without this file's __future__ imports
+                exec(compile(block, str(GUIDE), "exec", dont_inherit=True), namespace)
             yield namespace
         finally:
             registry._USER.pop("egs-depth-tv", None)
@@ -47,7 +53,28 @@ def guide_namespace(guide_folder: Path) -> Iterator[dict]:
 
 
 def test_the_guide_has_its_examples() -> None:
-    assert len(guide_code()) == 7
+    assert len(guide_code()) == 8
+
+
+def test_the_guides_keyframe_setting_is_an_option_with_its_range(guide_namespace,
+                                                                  guide_folder: Path) -> None:
+    """``keyframes.n`` reaches the policy (a keyframe every second frame by default, every
+    third when set), is checked against its range, and is recorded in ``config.yaml``."""
+    assert guide_namespace["options"] == {"keyframes.n": 3}
+    assert guide_namespace["refused"] == "SLAM option keyframes.n must be in [1, 1000]"
+    cfg = yaml.safe_load((guide_folder / "runs" / "egs-depth-tv" / "config.yaml").read_text())
+    assert cfg["slam"]["keyframes"]["n"] == 2
+    assert cfg["components"]["keyframes"]["target"] == "guide:EveryNthFrame"
+    method = guide_namespace["METHOD"].with_options(guide_namespace["options"])
+    policy = guide_namespace["EveryNthFrame"](
+        type("Context", (), {"cfg": method.config("cpu")})())
+    from egs_bench.slam.keyframes import KeyframeCandidate
+
+    def candidate(frame: int) -> KeyframeCandidate:
+        vis = np.ones(4, dtype=bool)
+        return KeyframeCandidate(frame, 0, np.eye(4), np.eye(4), vis, vis, 1.0, 1)
+
+    assert [policy.is_keyframe(candidate(i)) for i in (1, 2, 3, 4)] == [False, False, True, True]
 
 
 def test_the_guides_run_uses_its_keyframe_rule_tracker_and_loss_weight(guide_namespace: dict,

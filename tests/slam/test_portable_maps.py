@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -77,7 +78,8 @@ def test_appearance_file_describes_the_run(egs_run: RunFolder) -> None:
 
 
 @pytest.mark.parametrize("frame", [0, 2, FRAMES - 1])
-def test_render_map_reproduces_the_runs_render(egs_run: RunFolder, tmp_path: Path, frame) -> None:
+def test_render_map_reproduces_the_runs_render(egs_run: RunFolder, tmp_path: Path, frame: Any
+                                               ) -> None:
     out = tmp_path / "view.png"
     res = runner.invoke(app, ["render-map", str(egs_run.path), "--frame", str(frame), "-o",
                               str(out)])

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import signal
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -199,7 +200,7 @@ def test_failure_marks_run_failed_or_interrupted(tiny_sequence: Path, tmp_path: 
     seq = Sequence.open(tiny_sequence)
     cfg = methods.BUILTIN["monogs"].config("cpu").replace(**FAST)
 
-    def boom(*_a) -> None:
+    def boom(*_a: Any) -> None:
         raise exc
 
     with pytest.raises(type(exc)):
