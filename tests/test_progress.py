@@ -86,7 +86,7 @@ def test_run_quiet_also_silences_the_built_in_sequence_generation(monkeypatch: p
     class _Stop(Exception):
         pass
 
-    def fake_load(name, progress=True) -> None:
+    def fake_load(name: str, progress: bool = True) -> None:
         seen["progress"] = progress
         raise _Stop
 

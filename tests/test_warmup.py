@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import importlib
+import importlib.abc
 import re
 
 import pytest
@@ -18,7 +19,9 @@ _DECORATED = re.compile(r"^@njit\((?P<options>[^)]*)\)\s*\ndef (?P<name>\w+)\(",
 def _entry_kernels_in_source() -> set[str]:
     names = set()
     for module_name in KERNEL_MODULES:
-        source = importlib.import_module(module_name).__loader__.get_source(module_name)
+        loader = importlib.import_module(module_name).__loader__
+        assert isinstance(loader, importlib.abc.InspectLoader)
+        source = loader.get_source(module_name)
         for m in _DECORATED.finditer(source or ""):
             options = m["options"]
             if ("cache=True" in options and 'inline="always"' not in options

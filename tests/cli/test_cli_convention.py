@@ -9,16 +9,18 @@ from pathlib import Path
 
 import pytest
 import typer
-from typer._click import Context
+from typer._click import Command, Context
+from typer.core import TyperGroup
 
 from egs_bench.cli import _register_commands, main
 from egs_bench.cli.app import DEPRECATED_OPTIONS, PANELS, app, shown_opts
 from egs_bench.errors import EXIT_USAGE
 
 
-def _commands():
+def _commands() -> tuple[TyperGroup, list[tuple[str, Command, Context]]]:
     _register_commands()
     root = typer.main.get_command(app)
+    assert isinstance(root, TyperGroup)
     ctx = Context(root, info_name="egs-bench")
     return root, [(name, cmd, Context(cmd, info_name=name, parent=ctx))
                   for name, cmd in root.commands.items() if not cmd.hidden]

@@ -102,7 +102,9 @@ def test_make_eventreplica_end_to_end(
     assert seq.meta["eventreplica"]["original_frames"] == [1, 2, 3, 4]
     for i in range(len(seq)):
         # sharp GT = the original frame at exposure end (linearise -> re-encode is lossless)
-        sharp = seq.sharp(i).astype(int)
+        sharp_img = seq.sharp(i)
+        assert sharp_img is not None
+        sharp = sharp_img.astype(int)
         assert np.abs(sharp - rgbs[i + 1][4:68, 4:116]).max() <= 1
         np.testing.assert_allclose(seq.depth(i), depths[i + 1][4:68, 4:116], atol=2e-4)
         np.testing.assert_allclose(seq.poses[i], poses[i + 1], atol=1e-5)

@@ -72,7 +72,8 @@ def test_points_project_onto_their_dots_after_resize_and_crop(tmp_path: Path) ->
     orig = source.scene.rgb(0)[..., 1].astype(np.float64) / 255.0
     lin = np.where(orig <= 0.04045, orig / 12.92, ((orig + 0.055) / 1.055) ** 2.4)
     for (u, v), (mu, mv) in zip(src_intr.project(points),
-                                (_centroid(lin, *uv, radius=18) for uv in src_intr.project(points)),
+                                (_centroid(lin, cu, cv, radius=18)
+                                 for cu, cv in src_intr.project(points)),
                                 strict=True):
         assert abs(mu - u) < 0.05 and abs(mv - v) < 0.05
     # after: the same points land on the same content in the resized + cropped image

@@ -24,7 +24,7 @@ from tests.helpers import replica_testscene as scene
 INTR = Intrinsics(fx=160.0, fy=160.0, cx=128.0, cy=80.0, width=256, height=160)
 
 
-def _render(pose):
+def _render(pose: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return scene.render(pose, INTR.fx, INTR.fy, INTR.cx, INTR.cy, INTR.width, INTR.height)
 
 

@@ -21,7 +21,8 @@ def test_summary_values(tiny_sequence: Path) -> None:
     assert summary["events"] == len(seq.events)
     # plane at 2 m, camera at 0.5 m/s, 15 ms exposure, fx = 57.6 px
     expected_px = 0.5 * 0.015 * 57.6 / 2.0
-    assert abs(blur_extent_px(seq, 1) - expected_px) < 0.01
+    extent = blur_extent_px(seq, 1)
+    assert extent is not None and abs(extent - expected_px) < 0.01
     assert summary["sharpness_ratio_mean"] < 1.0
 
 

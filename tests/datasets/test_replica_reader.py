@@ -85,7 +85,7 @@ def test_jpeg_layout_as_nice_slam(tmp_path: Path) -> None:
 # --- bad input: each raises InputError naming the file and the problem ----------------------------
 
 
-def _expect(path: Path, *words: str, **kwargs: Any):
+def _expect(path: Path, *words: str, **kwargs: Any) -> InputError:
     with pytest.raises(InputError) as info:
         read_replica(path, **kwargs)
     return info.value

@@ -141,7 +141,7 @@ def test_tum_trajectory_is_retimed_and_placed_at_the_anchor(shared_data: Path) -
 
 
 def _tiny(scene: str, out: Path, **kwargs: Any) -> Path:
-    options = dict(frames=3, width=40, height=24, supersample=1, progress=False)
+    options: dict[str, Any] = dict(frames=3, width=40, height=24, supersample=1, progress=False)
     options.update(kwargs)
     return make_synthetic(scene, out, **options)
 

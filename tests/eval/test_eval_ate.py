@@ -107,7 +107,7 @@ def test_ate_analytic_noise_matches_independent_umeyama() -> None:
 def test_ate_bad_inputs(tmp_path: Path) -> None:
     gt = _loop(50)
     with pytest.raises(ConfigError, match="unknown alignment"):
-        compute_ate(gt, gt, align="affine")
+        compute_ate(gt, gt, align="affine")  # type: ignore[arg-type]  # the runtime check
     few = Trajectory(gt.timestamps[:2], gt.poses[:2])
     with pytest.raises(InputError, match="holds 2 poses, at least 3 needed"):
         compute_ate(few, gt, est_name="est.txt")

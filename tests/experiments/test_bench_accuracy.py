@@ -44,7 +44,7 @@ def test_status_run_and_resume(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) 
     assert set(runs.index) == {"egs", "monogs"}
     rev = code_revision()  # both runs name the commit this checkout is at
     assert set(runs["code"]) == {"?" if rev is None else
-                                 rev["commit"][:7] + ("+" if rev["modified"] else "")}
+                                 str(rev["commit"])[:7] + ("+" if rev["modified"] else "")}
     assert runs["ate_cm"].notna().all() and "error" not in runs
     # the fake estimates are the ground truth plus 1 cm / 3 cm of noise per axis
     assert runs.loc["egs", "ate_cm"] < runs.loc["monogs", "ate_cm"]

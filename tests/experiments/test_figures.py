@@ -71,11 +71,15 @@ def test_comparison_grid_psnr_and_crops(runs: tuple[Sequence, RunFolder, RunFold
                              crops=[(4, 4, 12, 8), (30, 20, 10, 8)]).read_text()
     for f in (0, 5):
         for run in (good, bad):
-            value = psnr_masked(run.read_render(f), seq.sharp(f))
+            sharp = seq.sharp(f)
+            assert sharp is not None
+            value = psnr_masked(run.read_render(f), sharp)
             assert f"PSNR {value:.2f} dB" in svg
         assert f"frame {f}" in svg
     assert svg.count("PSNR") == 2 * 3  # observed + 2 methods per row; the reference has none
-    png = plot_comparison_grid([[Panel("a", seq.rgb(0)), Panel("ref", seq.sharp(0))]],
+    sharp0 = seq.sharp(0)
+    assert sharp0 is not None
+    png = plot_comparison_grid([[Panel("a", seq.rgb(0)), Panel("ref", sharp0)]],
                                tmp_path / "grid.png", crops=[(4, 4, 12, 8)])
     img = iio.imread(png)
     red = (img[..., 0] > 200) & (img[..., 1] < 60) & (img[..., 2] < 60)

@@ -40,6 +40,7 @@ def test_an_existing_output_is_kept_without_overwrite(tmp_path: Path) -> None:
 
     out = tmp_path / "mine.csv"
     out.write_text("a user's file\n")
+    assert fr.__file__ is not None
     script = Path(fr.__file__)
     done = subprocess.run([sys.executable, str(script), "collect", str(tmp_path), "--out",
                            str(out)], capture_output=True, text=True)

@@ -4,6 +4,7 @@ ranks, Markdown and LaTeX (compiled with pdflatex where installed), the CLI."""
 import json
 import shutil
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -19,7 +20,7 @@ from tests.helpers.cli import assert_cli_error
 
 BASE_SLAM = {"event_tracking": True, "event_mapping": True, "crf": "learnable",
              "blur_model": True, "lambda_d": 0.1}
-METHODS = {
+METHODS: dict[str, dict[str, Any]] = {
     "egs": {},
     "egs-no-event-tracking": {"event_tracking": False},
     "egs-no-event-mapping": {"event_mapping": False},
@@ -33,7 +34,8 @@ ATE_CM = {"egs": 1.0, "egs-no-event-tracking": 3.0, "egs-no-event-mapping": 1.5,
           "egs-no-events": 4.0, "egs-no-crf": 1.2, "monogs": 5.0, "monogs-edi": 6.0}
 
 
-def _runs(root, methods=METHODS, seqs=("room0", "office1"), seeds=(0, 1)):
+def _runs(root: Path, methods: dict[str, dict[str, Any]] = METHODS,
+          seqs: tuple[str, ...] = ("room0", "office1"), seeds: tuple[int, ...] = (0, 1)) -> Path:
     for m, changes in methods.items():
         for si, seq in enumerate(seqs):
             for seed in seeds:

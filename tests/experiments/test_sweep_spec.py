@@ -224,7 +224,7 @@ def test_a_repeated_sigterm_during_the_interruption_record_is_ignored(
 
     write_record = worker.write_record
 
-    def repeat_then_write(run_dir, record) -> None:
+    def repeat_then_write(run_dir: Path, record: dict[str, Any]) -> None:
         if record["state"] == "interrupted":
             sigterm_self()
         write_record(run_dir, record)

@@ -62,6 +62,7 @@ def make_run(root: Path, seq_path: Path, method: str = "egs", sequence_name: str
     run.write_keyframes(list(keyframes))
     for i in range(0, len(seq), render_every):
         sharp = seq.sharp(i)
+        assert sharp is not None
         noisy = sharp.astype(float) + rng.normal(0, render_noise, sharp.shape)
         run.write_render(i, np.clip(noisy, 0, 255).astype(np.uint8))
     run.write_timing(total_wall_s=6.0, per_frame_s=[0.5] * len(seq), render_fps=250.0)

@@ -6,7 +6,12 @@ files are collected.)"""
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    import numpy as np
+
+    from egs_bench.datasets.pipeline import LatentFrame
 
 
 class PlaneSource:
@@ -30,14 +35,14 @@ class PlaneSource:
         self.speed = speed_mps
         self.distance = distance
 
-    def pose(self, t_us: int):
+    def pose(self, t_us: int) -> np.ndarray:
         import numpy as np
 
         pose = np.eye(4)
         pose[0, 3] = self.speed * t_us * 1e-6
         return pose
 
-    def render(self, t_us: int):
+    def render(self, t_us: int) -> LatentFrame:
         import cv2
         import numpy as np
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import torch
 
@@ -28,9 +29,9 @@ def random_scene(n: int = 200, c: int = 3, width: int = 32, height: int = 24, se
                      dtype=torch.float64)
     out = dict(means=means, quats=quats, scales=scales, opacities=opacities, colors=colors,
                viewmats=viewmats)
-    out = {k: v.to(dtype) for k, v in out.items()}
-    out.update(Ks=K.expand(c, 3, 3).clone(), width=width, height=height)
-    return out
+    scene: dict[str, Any] = {k: v.to(dtype) for k, v in out.items()}
+    scene.update(Ks=K.expand(c, 3, 3).clone(), width=width, height=height)
+    return scene
 
 
 def small_pose(step: float) -> torch.Tensor:

@@ -17,8 +17,14 @@ import os
 import time
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import pytest
+
+if TYPE_CHECKING:
+    from egs_bench.datasets.sequence import Sequence
+    from egs_bench.runs.folder import RunFolder
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 WIDTH, HEIGHT, FRAME_US = 48, 32, 33_333
@@ -63,8 +69,9 @@ class FakeMethod:
     render_sd: float
     description: str = "fake method for tests"
 
-    def run(self, sequence, out, *, preset="paper", device="cpu", seed=0, max_frames=None,
-            progress=True, options=None):
+    def run(self, sequence: Sequence, out: Path, *, preset: str = "paper", device: str = "cpu",
+            seed: int = 0, max_frames: int | None = None, progress: bool = True,
+            options: dict[str, Any] | None = None) -> RunFolder:
         from egs_bench.runs.folder import RunFolder
 
         n = len(sequence) if max_frames is None else min(len(sequence), max_frames)
@@ -86,7 +93,9 @@ class FakeMethod:
             run.write_trajectory(np.asarray(sequence.timestamps_s[:n]), est)
             run.write_keyframes([0, n // 3, 2 * n // 3])  # the monogs protocol's ATE needs 3
             for i in range(n):
-                sharp = sequence.sharp(i).astype(float)
+                sharp_img = sequence.sharp(i)
+                assert sharp_img is not None
+                sharp = sharp_img.astype(float)
                 noisy = sharp + rng.normal(0.0, self.render_sd, sharp.shape)
                 run.write_render(i, np.clip(noisy, 0, 255).astype(np.uint8))
             run.write_timing(total_wall_s=0.01 * n, per_frame_s=[0.01] * n, render_fps=100.0)
@@ -106,7 +115,7 @@ GOOD_PATH, BAD_PATH = f"{__name__}:GOOD", f"{__name__}:BAD"
 FAKE_EGS_PATH, FAKE_MONOGS_PATH = f"{__name__}:FAKE_EGS", f"{__name__}:FAKE_MONOGS"
 
 
-def worker_env(monkeypatch) -> None:
+def worker_env(monkeypatch: pytest.MonkeyPatch) -> None:
     """Make this checkout's ``tests`` package importable by worker processes and keep caches in
     the test tree."""
     path = os.environ.get("PYTHONPATH", "")

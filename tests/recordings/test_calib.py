@@ -25,7 +25,7 @@ GOOD = {
 FRAME_CAMERA = {"width": 640, "height": 480, "intrinsics": [500.0, 500.0, 320.0, 240.0]}
 
 
-def _write(tmp_path: Path, data) -> Path:
+def _write(tmp_path: Path, data: dict[str, Any]) -> Path:
     path = tmp_path / "calib.yaml"
     path.write_text(yaml.safe_dump(data))
     return path
@@ -33,6 +33,7 @@ def _write(tmp_path: Path, data) -> Path:
 
 def test_round_trip(tmp_path: Path) -> None:
     calib = load_calib(_write(tmp_path, GOOD))
+    assert calib.event_camera is not None and calib.depth_camera is not None
     assert calib.event_camera.model == "radtan" and calib.depth_camera.model == "none"
     assert calib.time_offsets_us == {"depth": -1500, "frames": 0, "mocap": 250}
     assert calib.T_event_depth[0, 3] == 0.05 and (calib.T_body_event == np.eye(4)).all()
@@ -43,6 +44,7 @@ def test_round_trip(tmp_path: Path) -> None:
     assert back.time_offsets_us == calib.time_offsets_us
     np.testing.assert_array_equal(back.T_event_depth, calib.T_event_depth)
     # egs-bench's pixel convention: + 0.5
+    assert calib.event_camera is not None
     assert calib.event_camera.pinhole().cx == 172.5
 
 

@@ -162,7 +162,7 @@ def test_stamps_and_intrinsics(tmp_path: Path) -> None:
         read_davis_intrinsics(path)
 
 
-def _run(args: list[str], capsys) -> tuple[int, str]:
+def _run(args: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str]:
     code = main(["import-enslam", *args])
     return code, capsys.readouterr().err
 

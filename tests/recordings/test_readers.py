@@ -137,7 +137,7 @@ def test_real_16uc1_depth_message_in_metres(shared_data: Path) -> None:
         conn = [c for c in reader.connections if c.topic == "/rgb/depth_repj"]
         _, _, raw = next(reader.messages(connections=conn))
         msg = reader.deserialize(raw, conn[0].msgtype)
-    mm = np.frombuffer(bytes(msg.data), "<u2").reshape(480, 640)
+    mm = np.frombuffer(bytes(msg.data), "<u2").reshape(480, 640)  # type: ignore[attr-defined]
     np.testing.assert_array_equal(d, (mm / 1000.0).astype(np.float32))
 
 

@@ -39,6 +39,7 @@ def test_gsplat_matches_numba_forward_and_gradients() -> None:
     for f in ("rgb", "depth", "alpha"):
         torch.testing.assert_close(getattr(out_g, f).cpu(), getattr(out_c, f), atol=2e-4,
                                    rtol=1e-3)
+    assert out_g.visibility is not None and out_c.visibility is not None
     agree = (out_g.visibility.cpu() == out_c.visibility).float().mean()
     assert agree > 0.995
     cot = torch.randn_like(out_c.rgb)

@@ -15,7 +15,8 @@ from egs_bench.render import GaussianMap
 from egs_bench.render.ply import SH_C0, load_ply, save_ply
 
 
-def _plane(h=24, w=32, z=2.0):
+def _plane(h: int = 24, w: int = 32, z: float = 2.0
+           ) -> tuple[np.ndarray, np.ndarray, Intrinsics]:
     intr = Intrinsics(40.0, 40.0, w / 2, h / 2, w, h)
     depth = np.full((h, w), z, np.float32)
     depth[:3] = 0.0  # invalid rows
@@ -23,7 +24,7 @@ def _plane(h=24, w=32, z=2.0):
     return rgb, depth, intr
 
 
-def _pose():
+def _pose() -> np.ndarray:
     a = np.radians(20)
     T = np.eye(4)
     T[:3, :3] = [[np.cos(a), -np.sin(a), 0], [np.sin(a), np.cos(a), 0], [0, 0, 1]]

@@ -59,28 +59,28 @@ class _Page(HTMLParser):
         self._cell: list[str] | None = None
         self.feed(path.read_text())
 
-    def handle_starttag(self, tag, attrs) -> None:
+    def handle_starttag(self, tag: str, attrs: list[tuple[str, str | None]]) -> None:
         a = dict(attrs)
         if tag == "table":
-            self._table = a.get("id", "")
+            self._table = a.get("id") or ""
             self.tables[self._table] = []
         elif tag == "tr" and self._table is not None:
             self.tables[self._table].append([])
         elif tag in ("td", "th") and self._table is not None:
             self._cell = []
         elif tag == "img" and "src" in a:  # the 3D view's panel gets its sources from its script
-            self.images.append(a["src"])
+            self.images.append(a["src"] or "")
         elif tag == "a":
-            self.links.append(a["href"])
+            self.links.append(a["href"] or "")
 
-    def handle_endtag(self, tag) -> None:
+    def handle_endtag(self, tag: str) -> None:
         if tag in ("td", "th") and self._cell is not None and self._table is not None:
             self.tables[self._table][-1].append("".join(self._cell).strip())
             self._cell = None
         elif tag == "table":
             self._table = None
 
-    def handle_data(self, data) -> None:
+    def handle_data(self, data: str) -> None:
         if self._cell is not None:
             self._cell.append(data)
 

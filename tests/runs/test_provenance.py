@@ -12,7 +12,7 @@ from egs_bench.runs.folder import RunFolder
 needs_git = pytest.mark.skipif(shutil.which("git") is None, reason="git is not installed")
 
 
-def _git(repo, *args: str) -> str:
+def _git(repo: Path, *args: str) -> str:
     return subprocess.run(["git", "-C", str(repo), "-c", "user.name=t", "-c", "user.email=t@t",
                            *args], check=True, capture_output=True, text=True).stdout.strip()
 

@@ -49,7 +49,7 @@ def test_run_folder_failure_guard_and_overwrite(tmp_path: Path) -> None:
     with pytest.raises(RuntimeError), run.failure_guard():
         raise RuntimeError("diverged at frame 7")
     status = run.read_status()
-    assert status.state == "failed" and "diverged at frame 7" in status.reason
+    assert status.state == "failed" and "diverged at frame 7" in (status.reason or "")
     with pytest.raises(OutputError, match="already exists; pass --overwrite"):
         RunFolder.create(tmp_path / "r", method="m", sequence_name="s", sequence_path=tmp_path)
     RunFolder.create(tmp_path / "r", method="m", sequence_name="s", sequence_path=tmp_path,

@@ -72,7 +72,7 @@ def tmpfs(tmp_path: Path) -> Iterator[Tmpfs]:
 
 
 def _command(name: str, out: Path, seq: Path, run: Path) -> list[str | Path]:
-    return {
+    commands: dict[str, list[str | Path]] = {
         "make-synthetic": ["make-synthetic", "--scene", "office", "--out", out, "--frames", "10",
                            "--width", "96", "--height", "64"],
         "export": ["export", seq, out, "-f", "tum-rgbd", "--quiet"],
@@ -87,7 +87,8 @@ def _command(name: str, out: Path, seq: Path, run: Path) -> list[str | Path]:
         "import-run": ["import-run", run / "trajectory.txt", out, "--from", "tum",
                        "--sequence-path", seq, "--method", "m", "--sequence", "s"],
         "run": ["run", "--method", "monogs", "--seq", seq, "--out", out, *QUICK_RUN],
-    }[name]
+    }
+    return commands[name]
 
 
 _OUTPUT = {"export-map": "m.ply", "render-map": "v.png", "show": "s.png",

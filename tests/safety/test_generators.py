@@ -4,6 +4,7 @@ signal, and, after SIGKILL (no clean-up possible), by the next run."""
 from __future__ import annotations
 
 import signal
+import subprocess
 from pathlib import Path
 
 import pytest
@@ -18,7 +19,7 @@ def _staging(out: Path) -> list[Path]:
     return sorted(out.parent.glob(f".{out.name}.*.tmp"))
 
 
-def _start_generator(out: Path, cwd: Path):
+def _start_generator(out: Path, cwd: Path) -> subprocess.Popen:
     """``make-synthetic`` in another process, long enough to be caught mid-way."""
     argv = ["make-synthetic", "--scene", "office", "--out", str(out), "--frames", "400",
             "--width", "32", "--height", "24", "--no-progress"]

@@ -44,7 +44,8 @@ def _tum_folder(root: Path, depth_value: int = 10000) -> Path:
     return root
 
 
-def _make(capsys, folder: Path, out: Path, *extra: str | Path) -> tuple[int, str]:
+def _make(capsys: pytest.CaptureFixture[str], folder: Path, out: Path, *extra: str | Path
+          ) -> tuple[int, str]:
     code, _, err = run_cli(capsys, "make-eventreplica", "--layout", "tum-rgbd", "--input",
                            folder, "--intrinsics", folder.parent / "camera.yaml", "--out", out,
                            "--width", "48", "--height", "32", "--upsample", "2",

@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 import signal
 import socket
+import subprocess
 import threading
 import time
 from pathlib import Path
@@ -28,7 +29,7 @@ def _status(run_dir: Path) -> dict:
     return json.loads(path.read_text()) if path.is_file() else {}
 
 
-def _start_slow_run(seq: Path, out: Path, cwd: Path):
+def _start_slow_run(seq: Path, out: Path, cwd: Path) -> subprocess.Popen:
     """``egs-bench run`` in another process, kept busy in its initial mapping."""
     argv = ["run", "--method", "monogs", "--seq", str(seq), "--out", str(out), *QUICK_RUN,
             "--set", "init_iters=100000"]
@@ -58,7 +59,7 @@ def test_a_second_writer_is_refused_and_a_killed_run_reads_as_interrupted(
         proc.communicate()
     assert _status(out)["state"] == "running"
     status = RunFolder.open(out).read_status()
-    assert status.state == "interrupted" and "stopped without finishing" in status.reason
+    assert status.state == "interrupted" and "stopped without finishing" in (status.reason or "")
     code, _, err = run_cli(capsys, "eval", out)
     assert_cli_error(code, err, 3, out, "run was interrupted",
                      "before it wrote trajectory.txt: nothing to evaluate")
@@ -112,7 +113,7 @@ def test_running_state_from_another_host_needs_a_recent_heartbeat(done_run: RunF
     assert done_run.read_status().state == "running"
     write(folder_mod.STALE_AFTER_S + 60)
     status = done_run.read_status()
-    assert status.state == "interrupted" and "no heartbeat from pid 1 on" in status.reason
+    assert status.state == "interrupted" and "no heartbeat from pid 1 on" in (status.reason or "")
     with pytest.raises(InputError, match="still running"):
         write(60)
         evaluate_run(done_run.path)

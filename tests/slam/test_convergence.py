@@ -11,7 +11,10 @@ import numpy as np
 import pytest
 
 from egs_bench.geometry.lie import se3_exp
-from egs_bench.slam.convergence import ConvergenceTest, stop_iteration
+from egs_bench.render import GaussianMap
+from egs_bench.slam.convergence import ConvergenceRule, ConvergenceTest, stop_iteration
+from egs_bench.slam.crf import CameraResponse
+from egs_bench.slam.tracker import TrackRequest
 
 
 def _poses(twists: list[np.ndarray]) -> np.ndarray:
@@ -23,7 +26,7 @@ def _poses(twists: list[np.ndarray]) -> np.ndarray:
     return np.array(out)
 
 
-def _replay(rule: str, steps: list[np.ndarray], tolerance: float, patience: int,
+def _replay(rule: ConvergenceRule, steps: list[np.ndarray], tolerance: float, patience: int,
             losses: list[float] | None = None) -> int:
     poses = _poses(steps)
     norms = np.array([np.linalg.norm(s) for s in steps])
@@ -69,9 +72,10 @@ def test_the_tracker_stops_where_the_replayed_rule_does(tiny_sequence: Path) -> 
 
     results: dict[str, TrackResult] = {}
 
-    def recorder(label: str):
+    def recorder(label: str) -> type[GradientTracker]:
         class Recording(GradientTracker):
-            def track(self, gmap, crf, request):
+            def track(self, gmap: GaussianMap, crf: CameraResponse, request: TrackRequest
+                      ) -> TrackResult:
                 result = super().track(gmap, crf, dataclasses.replace(request, trace=True))
                 if request.obs.index == 1:
                     results[label] = result

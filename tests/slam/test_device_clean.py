@@ -33,7 +33,7 @@ def stray_tensors_on_meta(monkeypatch: pytest.MonkeyPatch) -> Iterator[None]:
     numba_backend = importlib.import_module("egs_bench.render.numba_backend")
     composite = numba_backend.composite_tiles
 
-    def on_cpu(*args: Any, **kwargs: Any):
+    def on_cpu(*args: Any, **kwargs: Any) -> Any:
         with torch.device("cpu"):
             return composite(*args, **kwargs)
 

@@ -56,8 +56,8 @@ def test_the_guide_has_its_examples() -> None:
     assert len(guide_code()) == 8
 
 
-def test_the_guides_keyframe_setting_is_an_option_with_its_range(guide_namespace: dict,
-                                                                  guide_folder: Path) -> None:
+def test_the_guides_keyframe_setting_is_an_option_with_its_range(
+        guide_namespace: dict, guide_folder: Path) -> None:
     """``keyframes.n`` reaches the policy (a keyframe every second frame by default, every
     third when set), is checked against its range, and is recorded in ``config.yaml``."""
     assert guide_namespace["options"] == {"keyframes.n": 3}

@@ -119,6 +119,7 @@ def test_exposure_path_values_and_jacobian_match_autograd(seed: int) -> None:
     (ref * weights).sum().backward()
     g_eta = twist_gradient(views, weights.numpy())  # [M, 6]
     ours = np.einsum("mi,mij->j", g_eta, jac)
+    assert xi.grad is not None
     np.testing.assert_allclose(ours, xi.grad.numpy(), rtol=1e-9, atol=1e-9)
 
 

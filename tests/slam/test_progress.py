@@ -20,7 +20,7 @@ def test_compiling_is_said_and_the_eta_ignores_the_compiling_iteration() -> None
 
 def test_kernels_in_the_cache_are_not_said_to_compile_but_their_load_is_no_eta() -> None:
     clock, ready, asked = _Clock(), [False], []
-    progress = PhaseProgress(lambda: ready[0], clock, cold_cache=lambda: asked.append(1) or False)
+    progress = PhaseProgress(lambda: ready[0], clock, cold_cache=lambda: bool(asked.append(1)))  # type: ignore[func-returns-value]
     assert progress.text("map init", 0, 150) == "map init 0/150 iterations"
     assert progress.text("map init", 0, 150) == "map init 0/150 iterations"
     assert asked == [1]  # the cache is looked at once

@@ -29,7 +29,9 @@ def test_last_motion_and_constant_velocity_prediction() -> None:
     np.testing.assert_allclose(start.pose1_cw, p0)
     p1 = _pose_cw((0.02, 0.0, 0.0), 1.0)
     two = [first[0], FrameState(1, p1, p1.copy())]
-    rel, span = last_motion(two, "constant-velocity", 60_000, 30_000, 40_000)
+    motion = last_motion(two, "constant-velocity", 60_000, 30_000, 40_000)
+    assert motion is not None
+    rel, span = motion
     np.testing.assert_allclose(rel, p1 @ invert_pose(p0), atol=1e-12)
     assert span == 30_000
     assert last_motion(two, "constant-position", 60_000, 30_000, 40_000) is None

@@ -76,7 +76,7 @@ def test_coarse_tracking_renders_its_share_at_the_coarse_level(tiny_room: Path, 
     _, stats = _run(tiny_room, tmp_path / "coarse", tracking_coarse_scale=0.5,
                     tracking_coarse_fraction=0.5)
     n, m = BASE["tracking_iters"], BASE["segments"] + 1
-    coarse = coarse_iterations(n, 0.5, 0.5)
+    coarse = coarse_iterations(int(n), 0.5, 0.5)
     assert coarse == 4
     for rec in stats["work"]["per_frame"][1:]:
         assert rec["tracking"]["cameras"] == n * m
@@ -89,7 +89,7 @@ def test_coarse_mapping_renders_its_share_at_the_coarse_level(tiny_room: Path, t
     _, stats = _run(tiny_room, tmp_path / "coarse_map", mapping_coarse_scale=0.5,
                     mapping_coarse_fraction=0.5)
     m, init = BASE["segments"] + 1, BASE["init_iters"]
-    coarse = coarse_iterations(init, 0.5, 0.5)
+    coarse = coarse_iterations(int(init), 0.5, 0.5)
     assert stats["work"]["per_frame"][0]["init"]["pixels"] == m * (
         coarse * (W // 2) * (H // 2) + (init - coarse) * W * H)
 
