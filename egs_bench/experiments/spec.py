@@ -295,17 +295,18 @@ def _method_name(method: str, where: Path | str) -> str:
         raise InputError(where, str(exc)) from None
 
 
-def typed_options(options: Mapping[str, Any]) -> dict[str, Any]:
+def typed_options(options: Mapping[str, Any], method: object = None) -> dict[str, Any]:
     """A sweep's ``set``/``settings`` values typed by the rules of ``egs-bench run --set``
-    (:func:`egs_bench.slam.config.parse_overrides`: ``1e-3``, which YAML 1.1 reads as a string,
-    is a number where the field takes one), keyed by ``group.field``.
+    (:func:`egs_bench.slam.methods.parse_method_options`: ``1e-3``, which YAML 1.1 reads as a
+    string, is a number where the field takes one; ``method``'s components' own fields are
+    options too), keyed by ``group.field``.
 
     Raises:
         ConfigError: an unknown option or a value of the wrong type.
     """
-    from egs_bench.slam.config import parse_overrides
+    from egs_bench.slam.methods import parse_method_options
 
-    return parse_overrides([f"{k}={json.dumps(v)}" for k, v in options.items()])
+    return parse_method_options(method, [f"{k}={json.dumps(v)}" for k, v in options.items()])
 
 
 def _resolved_config(method: str, preset: str, options: Mapping[str, Any],
@@ -323,7 +324,7 @@ def _resolved_config(method: str, preset: str, options: Mapping[str, Any],
                                     f"methods; {method!r} is a user method")
         return None
     try:  # the same typing rules as `egs-bench run --set`
-        typed = typed_options(options)
+        typed = typed_options(options, m)
         return m.config(preset, dict(meta or {})).replace(**typed).validate().to_dict()
     except ConfigError as exc:
         raise InputError(where, f"{method} with preset {preset!r}: {exc}") from None

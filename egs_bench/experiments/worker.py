@@ -297,7 +297,8 @@ def _run_method(spec: RunSpec, run_dir: Path, record: dict[str, Any]) -> None:
 
     t0 = time.perf_counter()
     try:
-        method = with_options(get_method(spec.method), typed_options(spec.options or {}))
+        chosen = get_method(spec.method)
+        method = with_options(chosen, typed_options(spec.options or {}, chosen))
         sequence = Sequence.open(spec.sequence)
         method.run(sequence, run_dir, preset=spec.preset, device=spec.device, seed=spec.seed,
                    max_frames=spec.max_frames, progress=False)

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import ClassVar
 
+import numpy as np
 import pytest
 import yaml
 
@@ -19,6 +20,7 @@ from egs_bench.errors import ConfigError
 from egs_bench.slam import methods
 from egs_bench.slam.components import SlamComponents
 from egs_bench.slam.config import ALIASES, Bounds, KeyframeConfig, SlamConfig, cpu_preset
+from egs_bench.slam.context import SlamContext
 from egs_bench.slam.keyframes import KeyframeCandidate, MonoGSKeyframes
 from tests.helpers.cli import assert_cli_error
 
@@ -39,14 +41,17 @@ class EveryNthFrame:
 
     Config: ClassVar[type] = EveryNthConfig
 
-    def __init__(self, ctx) -> None:
-        self.rules = ctx.cfg.keyframes
+    def __init__(self, ctx: SlamContext) -> None:
+        rules = ctx.cfg.keyframes
+        assert isinstance(rules, EveryNthConfig)  # what Config puts in the group
+        self.rules = rules
         self.window = MonoGSKeyframes(self.rules, ctx.cfg.budget.window_size)
 
     def is_keyframe(self, candidate: KeyframeCandidate) -> bool:
         return candidate.frame_idx - candidate.last_kf_idx >= self.rules.n
 
-    def update_window(self, window, new_kf, visibility, poses_cw):
+    def update_window(self, window: list[int], new_kf: int, visibility: dict[int, np.ndarray],
+                      poses_cw: dict[int, np.ndarray]) -> tuple[list[int], list[int]]:
         return self.window.update_window(window, new_kf, visibility, poses_cw)
 
 
@@ -55,7 +60,7 @@ METHOD = dataclasses.replace(methods.BUILTIN["egs"], name="egs-every-nth",
 METHOD_PATH = f"{__name__}:METHOD"
 
 
-def _run(args: list[str], capsys) -> tuple[int, str]:
+def _run(args: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str]:
     code = main(["run", *args])
     return code, capsys.readouterr().err
 
@@ -91,12 +96,24 @@ def test_a_plugins_config_is_the_group_the_component_reads() -> None:
     assert isinstance(cfg.keyframes, EveryNthConfig) and cfg.keyframes.n == 2
     assert cfg.budget == cpu_preset().budget  # the preset still decides the budget
     three = METHOD.with_options(methods.parse_method_options(METHOD, ["keyframes.n=3"]))
-    assert three.config("cpu").keyframes.n == 3
+    keyframes = three.config("cpu").keyframes
+    assert isinstance(keyframes, EveryNthConfig) and keyframes.n == 3
     assert SlamConfig.from_dict(three.config("cpu").to_dict(),
                                 METHOD.config_classes()) == three.config("cpu")
     with pytest.raises(TypeError, match="extending KeyframeConfig"):
         cpu_preset().with_groups({"keyframes": dict})
     assert not isinstance(methods.BUILTIN["egs"].config("cpu").keyframes, EveryNthConfig)
+
+
+def test_a_sweeps_settings_reach_a_plugins_fields() -> None:
+    from egs_bench.experiments.spec import typed_options
+
+    assert typed_options({"keyframes.n": 3, "lambda_d": "1e-3"}, METHOD) == {
+        "keyframes.n": 3, "loss.lambda_d": 0.001}
+    with pytest.raises(ConfigError, match="SLAM option keyframes.n needs an integer"):
+        typed_options({"keyframes.n": "three"}, METHOD)
+    with pytest.raises(ConfigError, match="unknown SLAM option 'keyframes.n'"):
+        typed_options({"keyframes.n": 3}, methods.BUILTIN["egs"])
 
 
 def test_the_configuration_page_lists_a_plugins_fields() -> None:
