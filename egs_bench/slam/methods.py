@@ -109,13 +109,15 @@ def parse_method_options(method: object, items: list[str]) -> dict[str, Any]:
     return parse_overrides(items, classes)
 
 
-def rerun(config_file: str | Path, out: str | Path, *, sequence: str | Path | None = None,
+def rerun(config_file: str | Path, out: str | Path | None = None, *,
+          sequence: str | Path | None = None,
           method: str | None = None, progress: bool = True, overwrite: bool = False
           ) -> RunFolder:
     """Run again what a run folder's ``config.yaml`` records: the same method, preset, seed,
     device, frame count and every SLAM setting, on the same sequence (``sequence``: another
-    one). On the same machine the trajectory is the same, byte for byte (the CPU backend is
-    deterministic).
+    one), into ``out`` (None: where ``egs-bench run`` puts a run without ``--out``,
+    :func:`~egs_bench.runs.locations.run_location`). On the same machine the trajectory is the
+    same, byte for byte (the CPU backend is deterministic).
 
     The method is looked up by its recorded name, or where ``method`` says (a
     ``module:attribute`` path, for a method that is not registered under its name); it must
@@ -169,6 +171,10 @@ def rerun(config_file: str | Path, out: str | Path, *, sequence: str | Path | No
     if source is None:
         raise InputError(path.parent, "the run names no sequence folder; give the sequence")
     seq = load_sequence(source, progress=progress)
+    if out is None:
+        from egs_bench.runs.locations import run_location
+
+        out = run_location(Path(), seq.name, found.name)
     settings = RunSettings(stored["preset"], stored["device"], stored["seed"], stored["frames"],
                            progress, overwrite)
     return run_slam(seq, out, method_name=found.name, config=config, settings=settings,
