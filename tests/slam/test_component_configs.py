@@ -190,7 +190,9 @@ def test_run_config_refuses_a_run_made_with_other_components(tiny_sequence: Path
     (first / "config.yaml").write_text(yaml.safe_dump(stored))
     code, err = _run(["--config", str(first / "config.yaml"), "--out", str(tmp_path / "x")],
                      capsys)
-    assert_cli_error(code, err, 2, "the run's tracker are not those of method 'egs'")
+    assert_cli_error(code, err, 2, "the run was made with other parts than method 'egs' has: "
+                     "tracker oracle_tracking:oracle_components.<locals>.tracker (the method's: "
+                     "egs_bench.slam.tracker:GradientTracker)")
 
 
 def test_a_config_yaml_in_the_earlier_layouts_still_loads_and_reruns(
