@@ -12,7 +12,7 @@ from typing import Any
 from tabulate import tabulate
 
 from egs_bench.datasets import events, sequence
-from egs_bench.runs import folder
+from egs_bench.runs import contract, folder
 
 _ENTRY = re.compile(r"^\s*<(?:seq|run)>/(\S+)\s+(.*)$")
 _ROLE = re.compile(r":[a-z]+:`~?([^`]+)`")
@@ -152,7 +152,7 @@ def render_sequence() -> str:
 
 def render_run_folder() -> str:
     """The run-folder section (Markdown)."""
-    doc = folder.__doc__ or ""
+    doc = contract.__doc__ or ""
     status_rows = [[f"`{name}`", _cell(text)] for name, text in attributes(folder.RunStatus)]
     timing_rows = [[f"`{name}`", _cell(text)] for name, text in attributes(folder.RunTiming)]
     estimate_rows = [[f"`{key}`", _value(value)] for key, value in
@@ -160,7 +160,7 @@ def render_run_folder() -> str:
     parts = [
         "## Run folder",
         "",
-        "From `egs_bench/runs/folder.py`. " + markdown_text(doc.splitlines()[0]),
+        "From `egs_bench/runs/contract.py`. " + markdown_text(doc.splitlines()[0]),
         "",
         "### Files",
         "",

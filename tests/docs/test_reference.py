@@ -182,11 +182,11 @@ def test_formats_page_lists_every_run_folder_file_and_sequence_file(
         gen: Callable[[str], ModuleType], tiny_sequence: Path
 ) -> None:
     from egs_bench.datasets import sequence
-    from egs_bench.runs import folder
+    from egs_bench.runs import contract, folder
 
     formats = gen("formats_reference")
     page = formats.render()
-    run_paths = {path.split("/")[0] for path, _ in formats.layout(folder.__doc__)}
+    run_paths = {path.split("/")[0] for path, _ in formats.layout(contract.__doc__)}
     names = {value for name, value in vars(folder).items()
              if re.fullmatch(r"[A-Z]+_(FILE|DIR)", name)}
     assert names and names <= run_paths, names - run_paths

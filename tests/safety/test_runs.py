@@ -18,7 +18,7 @@ import pytest
 
 from egs_bench.errors import InputError, OutputError
 from egs_bench.eval.evaluate import evaluate_run
-from egs_bench.runs import folder as folder_mod
+from egs_bench.runs import coordination
 from egs_bench.runs.folder import RunFolder
 from tests.helpers.cli import assert_cli_error, run_cli
 from tests.helpers.safety_helpers import QUICK_RUN, python_subprocess, wait_for
@@ -111,7 +111,7 @@ def test_running_state_from_another_host_needs_a_recent_heartbeat(done_run: RunF
 
     write(60)
     assert done_run.read_status().state == "running"
-    write(folder_mod.STALE_AFTER_S + 60)
+    write(coordination.STALE_AFTER_S + 60)
     status = done_run.read_status()
     assert status.state == "interrupted" and "no heartbeat from pid 1 on" in (status.reason or "")
     with pytest.raises(InputError, match="still running"):
@@ -123,8 +123,8 @@ def test_heartbeat_refreshes_while_running_and_stops_at_the_end(tmp_path: Path, 
                                                                 monkeypatch: pytest.MonkeyPatch
                                                                 ) -> None:
     ticks = iter(f"2026-01-01T00:00:{s:02d}Z" for s in range(60))
-    monkeypatch.setattr(folder_mod, "HEARTBEAT_S", 0.02)
-    monkeypatch.setattr(folder_mod, "_now_utc", lambda: next(ticks))
+    monkeypatch.setattr(coordination, "HEARTBEAT_S", 0.02)
+    monkeypatch.setattr(coordination, "_now_utc", lambda: next(ticks))
     run = RunFolder.create(tmp_path / "r", method="m", sequence_name="s",
                            sequence_path=tiny_sequence)
     first = _status(run.path)["heartbeat_utc"]
@@ -206,7 +206,7 @@ def test_progress_rides_on_the_heartbeat_and_stays_in_the_final_status(
 ) -> None:
     """``set_progress`` writes nothing itself; the next heartbeat carries it (what a sweep
     status shows for a long run) and the final state keeps where the run ended."""
-    monkeypatch.setattr(folder_mod, "HEARTBEAT_S", 0.02)
+    monkeypatch.setattr(coordination, "HEARTBEAT_S", 0.02)
     run = RunFolder.create(tmp_path / "r", method="m", sequence_name="s",
                            sequence_path=tiny_sequence)
     assert "progress" not in _status(run.path) and run.read_status().progress_text() == ""
