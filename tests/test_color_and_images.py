@@ -31,9 +31,9 @@ from egs_bench.images import (
 
 def test_srgb_reference_points_and_roundtrip() -> None:
     # IEC 61966-2-1: encoded 0.04045 <-> linear 0.0031308; encoded 0.5 -> linear 0.214041
-    assert float(srgb_to_linear(np.float64(0.04045))) == pytest.approx(0.0031308, abs=1e-7)
-    assert float(srgb_to_linear(np.float64(0.5))) == pytest.approx(0.214041, abs=1e-6)
-    assert float(linear_to_srgb(np.float64(1.0))) == pytest.approx(1.0, abs=1e-12)
+    assert float(srgb_to_linear(np.array(0.04045))) == pytest.approx(0.0031308, abs=1e-7)
+    assert float(srgb_to_linear(np.array(0.5))) == pytest.approx(0.214041, abs=1e-6)
+    assert float(linear_to_srgb(np.array(1.0))) == pytest.approx(1.0, abs=1e-12)
     x = np.linspace(0, 1, 1001)
     np.testing.assert_allclose(linear_to_srgb(srgb_to_linear(x)), x, atol=1e-12)
     # out-of-range inputs are clipped, not extrapolated
@@ -58,6 +58,7 @@ def test_numpy_and_torch_give_the_same_values_and_dtypes() -> None:
 def test_linear_to_srgb_has_a_finite_gradient_at_black() -> None:
     x = torch.zeros(3, dtype=torch.float64, requires_grad=True)
     linear_to_srgb(x).sum().backward()
+    assert x.grad is not None
     assert torch.isfinite(x.grad).all() and float(x.grad[0]) == pytest.approx(12.92)
 
 

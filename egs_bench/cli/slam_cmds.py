@@ -69,8 +69,6 @@ def run_cmd(
         if given:
             raise ConfigError(f"--config re-runs the stored {', '.join(given)}; leave "
                               f"{'it' if len(given) == 1 else 'them'} out")
-        if out is None:
-            raise ConfigError("--config needs --out: the folder of the new run")
         run = rerun(config, out, sequence=seq, method=method, progress=not quiet,
                     overwrite=overwrite)
         typer.echo(f"run folder: {run.path}")

@@ -109,13 +109,15 @@ def parse_method_options(method: object, items: list[str]) -> dict[str, Any]:
     return parse_overrides(items, classes)
 
 
-def rerun(config_file: str | Path, out: str | Path, *, sequence: str | Path | None = None,
+def rerun(config_file: str | Path, out: str | Path | None = None, *,
+          sequence: str | Path | None = None,
           method: str | None = None, progress: bool = True, overwrite: bool = False
           ) -> RunFolder:
     """Run again what a run folder's ``config.yaml`` records: the same method, preset, seed,
     device, frame count and every SLAM setting, on the same sequence (``sequence``: another
-    one). On the same machine the trajectory is the same, byte for byte (the CPU backend is
-    deterministic).
+    one), into ``out`` (None: where ``egs-bench run`` puts a run without ``--out``,
+    :func:`~egs_bench.runs.locations.run_location`). On the same machine the trajectory is the
+    same, byte for byte (the CPU backend is deterministic).
 
     The method is looked up by its recorded name, or where ``method`` says (a
     ``module:attribute`` path, for a method that is not registered under its name); it must
@@ -156,23 +158,38 @@ def rerun(config_file: str | Path, out: str | Path, *, sequence: str | Path | No
     if found.name != stored["method"]:
         raise ConfigError(f"{path} is a run of method {stored['method']!r}, not of "
                           f"{found.name!r}")
-    parts = found.components or SlamComponents()
+    own = (found.components or SlamComponents()).record()
     recorded = stored.get("components")
-    if recorded is not None and recorded != parts.record():
-        roles = [role for role, part in parts.record().items()
-                 if not isinstance(recorded, dict) or recorded.get(role) != part]
-        raise ConfigError(f"{path}: the run's {', '.join(roles)} are not those of method "
-                          f"{found.name!r} (recorded: {recorded}); re-run it with the code "
-                          "that built those components")
+    if recorded is not None and recorded != own:
+        recorded = recorded if isinstance(recorded, dict) else {}
+        differ = [f"{role} {_part_name(recorded.get(role))} (the method's: "
+                  f"{_part_name(part)})" for role, part in own.items()
+                  if recorded.get(role) != part]
+        raise ConfigError(f"{path}: the run was made with other parts than method "
+                          f"{found.name!r} has: {'; '.join(differ)}")
     config = SlamConfig.from_dict(stored["slam"], found.config_classes()).validate()
     source = sequence if sequence is not None else Folder.open(path.parent).sequence_path
     if source is None:
         raise InputError(path.parent, "the run names no sequence folder; give the sequence")
     seq = load_sequence(source, progress=progress)
+    if out is None:
+        from egs_bench.runs.locations import run_location
+
+        out = run_location(Path(), seq.name, found.name)
     settings = RunSettings(stored["preset"], stored["device"], stored["seed"], stored["frames"],
                            progress, overwrite)
     return run_slam(seq, out, method_name=found.name, config=config, settings=settings,
                     components=found.components)
+
+
+def _part_name(record: Any) -> str:
+    """A recorded part in a message: its import path, or its loss terms' names."""
+    if isinstance(record, dict):
+        return str(record.get("target"))
+    if isinstance(record, list):
+        return "[" + ", ".join(str(t.get("name")) if isinstance(t, dict) else str(t)
+                               for t in record) + "]"
+    return "none"
 
 
 _MONOGS = {

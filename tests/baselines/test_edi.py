@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from numpy.typing import ArrayLike
 
 from egs_bench.baselines.edi import (
     EdiConfig,
@@ -24,10 +25,12 @@ from tests.helpers.plane_scene import make_plane_sequence
 T0, T1 = 1_000_000, 1_020_000  # a 20 ms exposure, microseconds
 
 
-def _one_pixel(x, y, t, p, *, t_ref, c_pos=0.25, c_neg=0.25):
-    return exposure_integral(np.asarray(x), np.asarray(y), np.asarray(t), np.asarray(p),
-                             height=1, width=1, t_start_us=T0, t_end_us=T1, t_ref_us=t_ref,
-                             c_pos=c_pos, c_neg=c_neg)[0, 0]
+def _one_pixel(x: ArrayLike, y: ArrayLike, t: ArrayLike, p: ArrayLike, *, t_ref: int,
+               c_pos: float = 0.25, c_neg: float = 0.25) -> float:
+    """The exposure integral of the one-pixel sensor's events (x, y, t [us], p)."""
+    return float(exposure_integral(np.asarray(x), np.asarray(y), np.asarray(t), np.asarray(p),
+                                   height=1, width=1, t_start_us=T0, t_end_us=T1,
+                                   t_ref_us=t_ref, c_pos=c_pos, c_neg=c_neg)[0, 0])
 
 
 @pytest.mark.parametrize("eps", [0.0, 1e-3])
@@ -113,7 +116,7 @@ def test_edge_consistency_prefers_the_gradients_that_made_the_events() -> None:
     gx = cv2.Sobel(img, cv2.CV_64F, 1, 0, ksize=3)
     gy = cv2.Sobel(img, cv2.CV_64F, 0, 1, ksize=3)
     assert edge_consistency(img, 0.7 * gx - 0.2 * gy, 16) == pytest.approx(0.0, abs=1e-9)
-    assert edge_consistency(img, rng.normal(size=img.shape), 16) > 0.8
+    assert edge_consistency(img, np.asarray(rng.normal(size=img.shape)), 16) > 0.8
     assert edge_consistency(img, np.zeros_like(img), 16) == 1.0
 
 
@@ -154,6 +157,7 @@ def test_edi_frame_is_much_sharper_than_the_blurred_frame(blurred_plane: Path) -
     seq = Sequence.open(blurred_plane)
     for i in range(len(seq)):
         sharp = seq.sharp(i)
+        assert sharp is not None
         blurred_db = psnr(seq.rgb(i), sharp)
         image, res = deblur_sequence_frame(seq, i)
         known, _ = deblur_sequence_frame(seq, i, EdiConfig(c=0.25))
@@ -162,7 +166,7 @@ def test_edi_frame_is_much_sharper_than_the_blurred_frame(blurred_plane: Path) -
         assert edi_db > blurred_db + 7.0
         assert known_db > blurred_db + 7.5
         assert edi_db > known_db - 1.0  # the search loses little against the true threshold
-        assert 0.18 <= res.c <= 0.3
+        assert res.c is not None and 0.18 <= res.c <= 0.3
         assert res.n_events > 10_000
 
 
@@ -180,7 +184,9 @@ def test_edi_needs_linear_intensity(blurred_plane: Path) -> None:
                        config=EdiConfig(c=0.25))
     wrong = np.round(np.clip(res.latent, 0, 1) * 255).astype(np.uint8)
     right, _ = deblur_sequence_frame(seq, 1, EdiConfig(c=0.25))
-    assert psnr(right, seq.sharp(1)) > psnr(wrong, seq.sharp(1)) + 2.0
+    sharp1 = seq.sharp(1)
+    assert sharp1 is not None
+    assert psnr(right, sharp1) > psnr(wrong, sharp1) + 2.0
 
 
 def test_edi_sequence_view(blurred_plane: Path, tmp_path: Path) -> None:
@@ -231,10 +237,11 @@ def test_monogs_edi_is_a_registered_method_writing_a_normal_run(tiny_room: Path,
     from egs_bench.eval.evaluate import evaluate_run
     from egs_bench.runs.folder import RunFolder
     from egs_bench.runs.registry import available_methods, get_method
-    from egs_bench.slam.methods import BUILTIN
+    from egs_bench.slam.methods import BUILTIN, ConfiguredSlamMethod
 
     assert "monogs-edi" in available_methods()
     method = get_method("monogs-edi")
+    assert isinstance(method, ConfiguredSlamMethod)
     assert method.overrides == BUILTIN["monogs"].overrides
     fast = dict(resolution_scale=1.0, init_iters=10, tracking_iters=10, mapping_iters=2,
                 kf_interval=2, pcd_downsample_init=2, pcd_downsample=4)

@@ -35,15 +35,15 @@ def _smooth_video(n: int, h: int, w: int, seed: int, amplitude: float = 1.5) -> 
 
 def _reference_esim(
     frames: np.ndarray, times: np.ndarray, pos: np.ndarray, neg: np.ndarray, refractory: int
-) -> list[tuple[int, int, int, int]]:
+) -> list[tuple[int, int, int, int, int]]:
     """Direct transcription of ESIM's per-crossing loop (pure Python, one pixel at a time).
 
     Returns events as (t, y * w + x, x, y, p) sorted by (t, pixel), crossing order kept.
     """
     _, h, w = frames.shape
     ref = frames[0].astype(np.float64).copy()
-    last_event = {}
-    out = []
+    last_event: dict[int, int] = {}
+    out: list[tuple[int, int, int, int, int]] = []
     for k in range(1, len(frames)):
         l0, l1 = frames[k - 1], frames[k]
         t0, t1 = int(times[k - 1]), int(times[k])
@@ -375,7 +375,7 @@ def test_invalid_input_is_rejected() -> None:
     with pytest.raises(ValueError):
         sim.step(np.full((4, 5), np.nan), 200)
     with pytest.raises(ValueError, match="integer"):
-        sim.step(np.zeros((4, 5)), 200.5)
+        sim.step(np.zeros((4, 5)), 200.5)  # type: ignore[arg-type]  # the runtime check
     with pytest.raises(ValueError):
         EventSimulator(EventSimConfig(), 0, 5)
     with pytest.raises(ValueError):
@@ -395,9 +395,9 @@ def test_event_ordering_merges_crossings_and_noise_by_time_then_pixel(dt: Any) -
     rng = np.random.default_rng(13)
     h, w = 5, 6
 
-    def pixel_ordered(n, with_keep):
+    def pixel_ordered(n: int, with_keep: bool) -> tuple[np.ndarray, ...]:
         pix = np.sort(rng.integers(0, h * w, n))
-        cols = [(pix % w).astype(np.uint16), (pix // w).astype(np.uint16),
+        cols: list[np.ndarray] = [(pix % w).astype(np.uint16), (pix // w).astype(np.uint16),
                 rng.integers(1, 40, n).astype(np.int64),
                 np.where(rng.random(n) < 0.5, 1, -1).astype(np.int8)]
         if with_keep:

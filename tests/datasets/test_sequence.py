@@ -40,7 +40,8 @@ def test_open_reads_everything(tiny_sequence: Path) -> None:
     seq = Sequence.open(tiny_sequence)
     assert len(seq) == 4 and (seq.width, seq.height) == (64, 48)
     assert seq.rgb(0).shape == (48, 64, 3) and seq.rgb(0).dtype == np.uint8
-    assert seq.sharp(3).shape == (48, 64, 3)
+    sharp = seq.sharp(3)
+    assert sharp is not None and sharp.shape == (48, 64, 3)
     np.testing.assert_allclose(seq.depth(2), 2.0, atol=1e-3)
     assert seq.poses.shape == (4, 4, 4)
     np.testing.assert_allclose(seq.timestamps_s, seq.t_end_us * 1e-6)
@@ -87,7 +88,8 @@ def test_ms_to_idx_definition(tiny_sequence: Path) -> None:
 
 
 def test_accumulate_event_maps_half_open() -> None:
-    ev = Events.from_arrays([1, 1, 1], [0, 0, 0], [10, 20, 21], [1, 1, -1])
+    ev = Events.from_arrays(np.array([1, 1, 1]), np.array([0, 0, 0]), np.array([10, 20, 21]),
+                            np.array([1, 1, -1]))
     maps = accumulate_event_maps(ev, np.array([10, 20, 30]), 2, 3)
     assert maps[0, 0, 1] == 1  # t=20 in (10, 20]; t=10 excluded
     assert maps[1, 0, 1] == -1
@@ -216,6 +218,7 @@ def test_bad_meta(seq_copy: Path) -> None:
 
 
 def test_write_events_rejects_unsorted(tmp_path: Path) -> None:
-    ev = Events.from_arrays([0, 1], [0, 0], [5, 3], [1, -1])
+    ev = Events.from_arrays(np.array([0, 1]), np.array([0, 0]), np.array([5, 3]),
+                            np.array([1, -1]))
     with pytest.raises(ValueError, match="not sorted"):
         write_events_h5(tmp_path / "e.h5", ev)

@@ -7,9 +7,10 @@ from __future__ import annotations
 import dataclasses
 import re
 import typing
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from types import ModuleType
+from typing import Any
 
 import pytest
 import typer
@@ -26,7 +27,7 @@ def _sections(page: str, level: int) -> dict[str, str]:
     return {parts[i].strip(): parts[i + 1] for i in range(1, len(parts), 2)}
 
 
-def _commands(command, path: str):
+def _commands(command: Any, path: str) -> Iterator[tuple[str, Any]]:  # click commands
     yield path, command
     for name, sub in getattr(command, "commands", {}).items():
         if not sub.hidden:
@@ -113,6 +114,7 @@ def test_config_page_has_every_field_with_default_preset_values_and_doc(
             assert docs[f.name], f"{group}.{f.name} has no comment in config.py to document it"
             assert row["doc"] == docs[f.name].replace("|", "\\|")
     # the cpu preset's smaller budget shows, in bold
+    assert headers is not None
     budget = dict(zip(headers, _row(sections["`budget`"], "tracking_iters"), strict=True))
     assert (budget["default"], budget["paper"], budget["cpu"]) == ("`100`", "`100`", "**`20`**")
 
@@ -144,7 +146,8 @@ def test_every_number_field_declares_its_range() -> None:
 
 def _inside_and_outside(bounds: config.Bounds, integer: bool) -> tuple[list, list]:
     step = 1 if integer else 1e-3
-    inside, outside = [], []
+    inside: list[float] = []
+    outside: list[float] = []
     for bound, sign, is_open in ((bounds.low, -1, bounds.low_open),
                                  (bounds.high, 1, bounds.high_open)):
         if bound is None:

@@ -55,9 +55,12 @@ def test_evaluate_run_numbers_and_determinism(tmp_path: Path, eval_sequence: Pat
     # image metrics are the per-frame means over frames 0, 5, 10 against the sharp GT
     r = first["rendering"]
     assert r["per_frame"]["frame"] == [0, 5, 10]
-    exp_psnr = np.mean([psnr_masked(run.read_render(i), seq.sharp(i)) for i in (0, 5, 10)])
-    exp_ssim = np.mean([ssim(run.read_render(i), seq.sharp(i)) for i in (0, 5, 10)])
-    exp_lpips = np.mean([lpips_distance(run.read_render(i), seq.sharp(i)) for i in (0, 5, 10)])
+    sharp = {i: seq.sharp(i) for i in (0, 5, 10)}
+    assert all(s is not None for s in sharp.values())
+    exp_psnr = np.mean([psnr_masked(run.read_render(i), sharp[i]) for i in (0, 5, 10)])  # type: ignore[arg-type]
+    exp_ssim = np.mean([ssim(run.read_render(i), sharp[i]) for i in (0, 5, 10)])  # type: ignore[arg-type]
+    exp_lpips = np.mean([lpips_distance(run.read_render(i), sharp[i])  # type: ignore[arg-type]
+                         for i in (0, 5, 10)])
     assert r["psnr_db"] == pytest.approx(exp_psnr, abs=1e-12)
     assert r["ssim"] == pytest.approx(exp_ssim, abs=1e-12)
     assert r["lpips"] == pytest.approx(exp_lpips, abs=1e-7)
@@ -72,7 +75,7 @@ def test_evaluate_run_numbers_and_determinism(tmp_path: Path, eval_sequence: Pat
     assert json.loads(run.metrics_path.read_bytes()) == first  # write=False left it alone
 
 
-def _expect(run_path, protocol, match) -> None:
+def _expect(run_path: Path, protocol: str, match: str) -> None:
     with pytest.raises(InputError, match=match):
         evaluate_run(run_path, protocol)
 

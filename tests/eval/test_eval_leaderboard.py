@@ -6,6 +6,7 @@ import json
 import re
 import shutil
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -23,8 +24,10 @@ from egs_bench.eval.leaderboard import (
 from egs_bench.runs.folder import RunFolder
 
 
-def _run(root, method, seq, ate_m=None, psnr=None, ssim=None, lpips=None, protocol="egs",
-         seed=None, config=None, coverage=None, folder=None):
+def _run(root: Path, method: str, seq: str, ate_m: float | None = None, psnr: float | None = None,
+         ssim: float | None = None, lpips: float | None = None, protocol: str = "egs",
+         seed: int | None = None, config: dict[str, Any] | None = None,
+         coverage: tuple[int, int] | None = None, folder: str | None = None) -> RunFolder:
     cfg = dict(config or {})
     if seed is not None:
         cfg["seed"] = seed
@@ -194,11 +197,11 @@ def test_leaderboard_by_method_and_errors(runs: Path) -> None:
     assert cells[0] == "**1.00**" and cells[4] == "<u>2.00</u>" and cells[8] == "3.00"
     assert cells[5] == "**31.00**" and cells[1] == "<u>30.00</u>" and cells[9] == "29.00"
     with pytest.raises(ConfigError, match="unknown format"):
-        leaderboard(runs, "html")
+        leaderboard(runs, "html")  # type: ignore[arg-type]  # the runtime check
     with pytest.raises(ConfigError, match="unknown metric"):
         leaderboard(runs, "md", metrics=["psnr", "chamfer"])
     with pytest.raises(ConfigError, match="unknown LaTeX width"):
-        render_latex(collect(runs, evaluate_missing=False), width="huge")
+        render_latex(collect(runs, evaluate_missing=False), width="huge")  # type: ignore[arg-type]
 
 
 def test_leaderboard_empty_root(tmp_path: Path) -> None:
@@ -208,7 +211,7 @@ def test_leaderboard_empty_root(tmp_path: Path) -> None:
         leaderboard(tmp_path)
 
 
-def _three_sequence_runs(root):
+def _three_sequence_runs(root: Path) -> Path:
     for s in ("office_sequence_1", "office_sequence_2", "livingroom_3"):
         for m, base in (("egs-no-event-tracking", 0.03), ("monogs", 0.05)):
             for seed in (0, 1):

@@ -14,7 +14,7 @@ from scipy.spatial.transform import Rotation
 
 from egs_bench.errors import ConfigError, InputError
 from egs_bench.eval.ate import ate_from_files, check_argument_order, file_role_hint
-from egs_bench.eval.rpe import compute_rpe, rpe_from_files, standard_rpe
+from egs_bench.eval.rpe import RpeResult, compute_rpe, rpe_from_files, standard_rpe
 from egs_bench.geometry import Trajectory, pose_from_tq, write_tum
 from tests.helpers.cli import assert_cli_error, run_cli
 from tests.helpers.trajectory_pairs import PAIRS, REAL, SYNTHETIC, pair_paths
@@ -45,7 +45,7 @@ def _evo_rpe_function(gt: Path, est: Path, extra: list[str], out: Path) -> zipfi
     return zipfile.ZipFile(out)
 
 
-def _assert_same(ours, ref_zip: zipfile.ZipFile) -> None:
+def _assert_same(ours: RpeResult, ref_zip: zipfile.ZipFile) -> None:
     import io
 
     stats = json.loads(ref_zip.read("stats.json"))
@@ -93,11 +93,11 @@ def test_rpe_constant_relative_error_is_exact() -> None:
     err = np.eye(4)
     err[:3, :3] = Rotation.from_rotvec(np.radians(0.7) * np.array([0.6, 0.0, 0.8])).as_matrix()
     err[:3, 3] = [0.003, -0.004, 0.0]  # 5 mm
-    est = [gt.poses[0]]
+    steps = [gt.poses[0]]
     for i in range(1, len(gt)):
         step = np.linalg.inv(gt.poses[i - 1]) @ gt.poses[i]
-        est.append(est[-1] @ step @ err)
-    est = Trajectory(gt.timestamps, np.stack(est))
+        steps.append(steps[-1] @ step @ err)
+    est = Trajectory(gt.timestamps, np.stack(steps))
     trans = compute_rpe(est, gt, relation="trans_part")
     rot = compute_rpe(est, gt, relation="angle_deg")
     assert trans.n_pairs == rot.n_pairs == len(gt) - 1
@@ -160,15 +160,15 @@ def test_rpe_matches_independent_computation_and_sim3_scale() -> None:
 def test_rpe_bad_options_and_short_trajectories(tmp_path: Path) -> None:
     gt = _wiggle(30)
     with pytest.raises(ConfigError, match="unknown RPE relation 'yaw'"):
-        compute_rpe(gt, gt, relation="yaw")
+        compute_rpe(gt, gt, relation="yaw")  # type: ignore[arg-type]  # the runtime check
     with pytest.raises(ConfigError, match="unknown delta unit 's'"):
-        compute_rpe(gt, gt, delta_unit="s")
+        compute_rpe(gt, gt, delta_unit="s")  # type: ignore[arg-type]
     with pytest.raises(ConfigError, match="must be an integer"):
         compute_rpe(gt, gt, delta=1.5)
     with pytest.raises(ConfigError, match="must be > 0"):
         compute_rpe(gt, gt, delta=0)
     with pytest.raises(ConfigError, match="unknown alignment"):
-        compute_rpe(gt, gt, align="affine")
+        compute_rpe(gt, gt, align="affine")  # type: ignore[arg-type]
     with pytest.raises(InputError, match=r"est\.txt: no pose pair 100 meters apart"):
         compute_rpe(gt, gt, delta=100, delta_unit="m", est_name="est.txt")
     with pytest.raises(InputError, match="no pose pair 40 frames apart"):

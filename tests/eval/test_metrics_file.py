@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import shutil
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -25,7 +26,7 @@ def evaluated(tmp_path_factory: pytest.TempPathFactory, eval_sequence: Path
     return run.path, evaluate_run(run.path, "egs")
 
 
-def _rewrite(src: Path, dst_root: Path, change) -> Path:
+def _rewrite(src: Path, dst_root: Path, change: Callable[[dict[str, Any]], object]) -> Path:
     """A copy of ``src``'s metrics.json in a fresh folder, its content passed through
     ``change``; returns the folder."""
     data = json.loads((src / "metrics.json").read_text())
@@ -42,6 +43,7 @@ def test_a_file_written_by_evaluation_reads_back_whole(evaluated: tuple[Path, di
     assert m.protocol == "egs" and m.protocol_settings == written["protocol"]
     assert (m.method, m.sequence, m.status) == ("egs", "tiny", "done")
     assert m.schema_version == METRICS_SCHEMA_VERSION
+    assert m.ate_rmse_m is not None and m.fps is not None
     assert m.ate_rmse_m == written["ate"]["rmse_m"] and 0.0 < m.ate_rmse_m < 0.05
     assert m.ate == written["ate"] and m.rpe == written["rpe"]
     rendering = written["rendering"]
@@ -106,7 +108,7 @@ def test_a_file_of_the_first_layout_reads(tmp_path: Path) -> None:
     assert (m.fps, m.render_fps) == (written["speed"]["fps"], written["speed"]["render_fps"])
 
 
-def _set(path: tuple[str, ...], value: Any):
+def _set(path: tuple[str, ...], value: Any) -> Callable[[dict[str, Any]], None]:
     def change(data: dict[str, Any]) -> None:
         for key in path[:-1]:
             data = data[key]

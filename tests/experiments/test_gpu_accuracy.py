@@ -3,6 +3,7 @@ does not fit, stop a run that overruns and record it), and the cpu-budget table'
 the done rows. A fake runner with a fake clock stands in for the GPU processes."""
 
 from pathlib import Path
+from typing import Any
 
 import pandas as pd
 import pytest
@@ -29,7 +30,7 @@ class FakeRunner:
         self.now += 5.0
         return True
 
-    def run(self, req, timeout_s: float):
+    def run(self, req: Any, timeout_s: float) -> Any:  # the script's RunRequest, RunOutcome
         self.runs.append(req.key)
         need = self.seconds[req.method]
         if need > timeout_s:
@@ -45,8 +46,8 @@ def _seed_csv(path: Path, rows: list[dict]) -> None:
     pd.DataFrame([{c: r.get(c) for c in ga.COLUMNS} for r in rows]).to_csv(path, index=False)
 
 
-def _campaign(runner: FakeRunner, csv: Path, until_s: float, out: Path, seqs, methods, seeds,
-              said: list[str]):
+def _campaign(runner: FakeRunner, csv: Path, until_s: float, out: Path, seqs: tuple[str, ...],
+              methods: tuple[str, ...], seeds: tuple[int, ...], said: list[str]) -> list[Any]:
     return ga.campaign(ga.plan(out, seqs, methods, seeds), csv, until_s, runner,
                        device="cpu", code="abc1234", clock=runner.clock, say=said.append)
 

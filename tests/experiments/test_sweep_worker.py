@@ -24,7 +24,7 @@ def seqs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     return {"a": make_sequence(root, "sa", 6, 0)}
 
 
-def _run(seqs, out: Path, **extra: Any) -> RunSpec:
+def _run(seqs: dict[str, Path], out: Path, **extra: Any) -> RunSpec:
     spec = parse_sweep({"methods": [GOOD_PATH], "sequences": ["a"], **extra},
                        "s.yaml")
     return expand(spec, seqs, out)[0]
@@ -190,7 +190,8 @@ def test_dry_run_and_status_generate_no_builtin_sequence(tmp_path: Path, seqs: d
     monkeypatch.setenv("EGS_BENCH_DATA", str(data))
     spec = parse_sweep({"methods": [GOOD_PATH], "sequences": ["demo", str(seqs["a"])],
                         "out": str(tmp_path / "out")}, "s.yaml")
-    for flags in ({"dry_run": True}, {"status_only": True}):
+    flag_sets: tuple[dict[str, Any], ...] = ({"dry_run": True}, {"status_only": True})
+    for flags in flag_sets:
         lines: list[str] = []
         report = run_sweep(spec, say=lines.append, **flags)
         assert report.ungenerated == ["demo"]

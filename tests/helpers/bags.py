@@ -4,6 +4,7 @@ camera info, exposure), the message types a DAVIS / RealSense / mocap rig record
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from rosbags.rosbag1 import Writer
@@ -15,20 +16,20 @@ EVENT_MSG = "uint16 x\nuint16 y\ntime ts\nbool polarity\n"
 EVENT_ARRAY_MSG = "Header header\nuint32 height\nuint32 width\ndvs_msgs/Event[] events\n"
 
 
-def typestore():
+def typestore() -> Any:  # a rosbags Typestore
     ts = get_typestore(Stores.ROS1_NOETIC)
     ts.register(get_types_from_msg(EVENT_MSG, "dvs_msgs/msg/Event")
                 | get_types_from_msg(EVENT_ARRAY_MSG, "dvs_msgs/msg/EventArray"))
     return ts
 
 
-def _stamp(ts, t_us: int):
+def _stamp(ts: Any, t_us: int) -> Any:
     t_us = int(t_us)
     return ts.types["builtin_interfaces/msg/Time"](sec=t_us // 1_000_000,
                                                   nanosec=(t_us % 1_000_000) * 1000)
 
 
-def _header(ts, t_us: int, frame_id: str = "cam"):
+def _header(ts: Any, t_us: int, frame_id: str = "cam") -> Any:
     return ts.types["std_msgs/msg/Header"](seq=0, stamp=_stamp(ts, t_us), frame_id=frame_id)
 
 
@@ -39,10 +40,11 @@ class BagBuilder:
         self.ts = typestore()
         self._msgs: list[tuple[int, str, str, object]] = []
 
-    def _add(self, topic: str, msgtype: str, t_us: int, msg) -> None:
+    def _add(self, topic: str, msgtype: str, t_us: int, msg: object) -> None:
         self._msgs.append((int(t_us), topic, msgtype, msg))
 
-    def events(self, topic: str, x, y, t_us, p, width: int, height: int,
+    def events(self, topic: str, x: np.ndarray, y: np.ndarray, t_us: np.ndarray, p: np.ndarray,
+               width: int, height: int,
                packet_us: int = 10_000) -> None:
         """Events (p in {0,1} or +-1) split into packets of ``packet_us``."""
         t_us = np.asarray(t_us, np.int64)
@@ -82,7 +84,8 @@ class BagBuilder:
                                                       pose=pose)
         self._add(topic, "geometry_msgs/msg/PoseStamped", t_us, msg)
 
-    def camera_info(self, topic: str, t_us: int, width: int, height: int, K, D,
+    def camera_info(self, topic: str, t_us: int, width: int, height: int,
+                    K: tuple[float, float, float, float], D: list[float],
                     model: str = "plumb_bob") -> None:
         types = self.ts.types
         fx, fy, cx, cy = K

@@ -10,6 +10,7 @@ import csv
 import glob
 import os
 import shutil
+from collections.abc import Callable
 from pathlib import Path
 
 import cv2
@@ -26,9 +27,10 @@ def quat_wxyz_to_matrix(q: np.ndarray) -> np.ndarray:
         [0.0, 0.0, 0.0, 1.0]])
 
 
-def monogs_tum_parser(datapath: str, frame_rate: float = 32):
+def monogs_tum_parser(datapath: str, frame_rate: float = 32
+                      ) -> tuple[list[str], list[str], list[np.ndarray]]:
     """MonoGS TUMParser.load_poses: colour paths, depth paths, w2c poses of kept frames."""
-    def parse_list(filepath, skiprows=0):
+    def parse_list(filepath: str, skiprows: int = 0) -> np.ndarray:
         return np.loadtxt(filepath, delimiter=" ", dtype=np.str_, skiprows=skiprows)
 
     pose_list = os.path.join(datapath, "groundtruth.txt")
@@ -62,7 +64,8 @@ def monogs_tum_parser(datapath: str, frame_rate: float = 32):
     return colors, depths, poses
 
 
-def monogs_replica_parser(input_folder: str):
+def monogs_replica_parser(input_folder: str
+                          ) -> tuple[list[str], list[str], list[np.ndarray]]:
     """MonoGS ReplicaParser: sorted JPEG / depth globs and traj.txt (c2w, inverted)."""
     colors = sorted(glob.glob(f"{input_folder}/results/frame*.jpg"))
     depths = sorted(glob.glob(f"{input_folder}/results/depth*.png"))
@@ -73,7 +76,7 @@ def monogs_replica_parser(input_folder: str):
     return colors, depths, poses
 
 
-def orbslam_load_images(association_file: str):
+def orbslam_load_images(association_file: str) -> tuple[list[str], list[str], list[float]]:
     """rgbd_tum.cc LoadImages: every non-empty line is 't rgb t depth'."""
     rgb, depth, stamps = [], [], []
     with open(association_file) as f:
@@ -86,13 +89,15 @@ def orbslam_load_images(association_file: str):
     return rgb, depth, stamps
 
 
-def orbslam3_read(fs: cv2.FileStorage, name: str, kind: str):
+def orbslam3_read(fs: cv2.FileStorage, name: str, kind: str) -> float | int | str:
     """ORB-SLAM3 Settings::readParameter: aborts unless the node has the right type."""
     node = fs.getNode(name)
     assert not node.empty(), f"{name} required parameter does not exist"
     check = {"float": node.isReal, "int": node.isInt, "string": node.isString}[kind]
     assert check(), f"{name} parameter must be a {kind}"
-    return {"float": node.real, "int": lambda: int(node.real()), "string": node.string}[kind]()
+    readers: dict[str, Callable[[], float | int | str]] = {
+        "float": node.real, "int": lambda: int(node.real()), "string": node.string}
+    return readers[kind]()
 
 
 def retimed_copy(src: Path, dst: Path, period_us: int) -> Path:

@@ -25,10 +25,13 @@ TEXEL_M = 0.006  # metres per texel
 def _textures() -> list[np.ndarray]:
     """Six linear-colour float32 textures [512, 512, 3]."""
     out = []
-    for name, tint in (("astronaut", None), ("brick", (1.0, 0.7, 0.5)), ("coffee", None),
-                       ("gravel", (0.6, 0.8, 1.0)), ("chelsea", None), ("grass", (0.5, 1.0, 0.6))):
+    textures: tuple[tuple[str, tuple[float, float, float] | None], ...] = (
+        ("astronaut", None), ("brick", (1.0, 0.7, 0.5)), ("coffee", None),
+        ("gravel", (0.6, 0.8, 1.0)), ("chelsea", None), ("grass", (0.5, 1.0, 0.6)))
+    for name, tint in textures:
         img = getattr(skimage.data, name)()
         if img.ndim == 2:
+            assert tint is not None  # the grey photographs are tinted
             img = np.stack([img * t for t in tint], axis=-1)
         img = cv2.resize(img.astype(np.float32), (512, 512), interpolation=cv2.INTER_AREA) / 255.0
         out.append(np.clip(img, 0, 1) ** 2.2)  # roughly linearise the photographs
@@ -68,7 +71,8 @@ def _shade(points: np.ndarray, axis: np.ndarray, sign: np.ndarray, inner: np.nda
     return out
 
 
-def _cast(origin: np.ndarray, dirs: np.ndarray):
+def _cast(origin: np.ndarray, dirs: np.ndarray
+          ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Hit distance (along dirs), point, face axis, face sign, inner-box flag for each ray."""
     with np.errstate(divide="ignore", invalid="ignore"):
         inv = 1.0 / dirs
@@ -124,7 +128,8 @@ def render(
     return rgb, depth
 
 
-def look_pose(position, yaw_deg: float = 0.0, pitch_deg: float = 0.0, roll_deg: float = 0.0):
+def look_pose(position: list[float], yaw_deg: float = 0.0, pitch_deg: float = 0.0,
+              roll_deg: float = 0.0) -> np.ndarray:
     """Camera-to-world pose at ``position`` looking along +z rotated by yaw/pitch/roll (deg)."""
     from scipy.spatial.transform import Rotation
 

@@ -104,8 +104,10 @@ def test_orbslam2_reads_associations_and_settings(seq: Sequence, tum_export: Pat
     factor = fs.getNode("DepthMapFactor").real()
     for i in range(len(seq)):
         im = cv2.imread(str(tum_export / rgb[i]), cv2.IMREAD_UNCHANGED)
+        assert im is not None
         np.testing.assert_array_equal(im[:, :, ::-1], seq.rgb(i))
         d = cv2.imread(str(tum_export / depth[i]), cv2.IMREAD_UNCHANGED)
+        assert d is not None
         assert d.dtype == np.uint16
         np.testing.assert_allclose(d / factor, seq.depth(i), atol=0.5 / factor)
 
@@ -193,6 +195,7 @@ def test_eds_layout_passes_rampvo_loaders(seq: Sequence, tmp_path: Path) -> None
     assert (height, width) == (seq.height, seq.width)
     assert t.dtype == np.int64 and p.dtype == np.int8
     assert p.max() <= 1 and x.max() <= width - 1 and y.max() <= height - 1
+    assert seq.events.t_first is not None
     want = seq.events.window(seq.events.t_first, int(seq.t_end_us[-1]) + 1)
     np.testing.assert_array_equal(t, want.t)  # absolute microseconds, like timestamps.txt
     np.testing.assert_array_equal(np.where(p == 0, -1, p), want.p)
@@ -238,6 +241,7 @@ def _damaged_copy(src: Path, dst: Path, column: str, how: str) -> Path:
         image.write_bytes(data[: len(data) // 2])
     else:  # a valid PNG of the wrong size, same mode as the original
         raw = cv2.imread(str(image), cv2.IMREAD_UNCHANGED)
+        assert raw is not None
         cv2.imwrite(str(image), np.ascontiguousarray(raw[:-2]))
     return dst
 

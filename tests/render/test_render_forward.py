@@ -11,6 +11,7 @@ import torch
 from egs_bench.errors import ConfigError
 from egs_bench.render import constants as RC
 from egs_bench.render import project_gaussians, rasterize
+from egs_bench.render.rasterize import Backend
 from tests.helpers.render_scenes import random_scene
 
 FIELDS = ("rgb", "depth", "expected_depth", "alpha")
@@ -113,7 +114,7 @@ def test_batch_equals_single_calls(c: int) -> None:
 
 
 @pytest.mark.parametrize("backend", ["numba", "reference"])
-def test_empty_scene_gives_background(backend: str) -> None:
+def test_empty_scene_gives_background(backend: Backend) -> None:
     scene = random_scene(n=0, c=2, seed=0)
     bg = torch.tensor([[0.1, 0.2, 0.3], [1.0, 0.0, 0.5]], dtype=torch.float64)
     out = rasterize(**scene, backgrounds=bg, backend=backend)
@@ -123,7 +124,7 @@ def test_empty_scene_gives_background(backend: str) -> None:
 
 
 @pytest.mark.parametrize("backend", ["numba", "reference"])
-def test_behind_camera_and_off_image_gaussians_contribute_nothing(backend: str) -> None:
+def test_behind_camera_and_off_image_gaussians_contribute_nothing(backend: Backend) -> None:
     scene = random_scene(n=60, c=1, seed=7)
     base = rasterize(**scene, backend=backend)
     extra = torch.tensor([[0.0, 0.0, -1.0], [0.0, 0.0, 0.005], [50.0, 0.0, 2.0],
@@ -141,7 +142,7 @@ def test_behind_camera_and_off_image_gaussians_contribute_nothing(backend: str) 
 
 
 @pytest.mark.parametrize("backend", ["numba", "reference"])
-def test_degenerate_scales_stay_finite(backend: str) -> None:
+def test_degenerate_scales_stay_finite(backend: Backend) -> None:
     scene = random_scene(n=50, c=2, seed=8)
     scene["scales"][:10] = 0.0  # flat/point Gaussians: only the 0.3 px^2 dilation remains
     scene["scales"][10:13] = 1e4  # huge ones

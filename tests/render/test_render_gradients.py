@@ -2,16 +2,20 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import pytest
 import torch
 
 from egs_bench.render import rasterize
+from egs_bench.render.rasterize import Backend
 from tests.helpers.render_scenes import leaf_copy, random_scene, se3_exp
 
 PARAMS = ("means", "quats", "scales", "opacities", "colors", "viewmats")
 
 
-def _grads(scene, backend, cot, backgrounds=None):
+def _grads(scene: dict[str, Any], backend: Backend, cot: dict[str, torch.Tensor],
+           backgrounds: torch.Tensor | None = None) -> dict[str, torch.Tensor]:
     s = leaf_copy(scene)
     bg = None
     if backgrounds is not None:
@@ -23,10 +27,11 @@ def _grads(scene, backend, cot, backgrounds=None):
     g = {k: s[k].grad for k in PARAMS}
     if bg is not None:
         g["backgrounds"] = bg.grad
+    assert all(v is not None for v in g.values())
     return g
 
 
-def _cotangent(scene, seed, dtype):
+def _cotangent(scene: dict[str, Any], seed: int, dtype: torch.dtype) -> dict[str, torch.Tensor]:
     c, h, w = scene["viewmats"].shape[0], scene["height"], scene["width"]
     gen = torch.Generator().manual_seed(seed)
     return {"rgb": torch.randn(c, h, w, 3, generator=gen, dtype=torch.float64).to(dtype),
@@ -48,7 +53,7 @@ def test_gradients_match_reference_float64(n: int, c: int, seed: int, opaque: bo
     got = _grads(scene, "numba", cot, bg)
     for k, g_ref in ref.items():
         assert g_ref.abs().max() > 0, k
-        torch.testing.assert_close(got[k], g_ref, rtol=1e-9, atol=1e-9 * g_ref.abs().max(),
+        torch.testing.assert_close(got[k], g_ref, rtol=1e-9, atol=1e-9 * float(g_ref.abs().max()),
                                    msg=k)
 
 
@@ -63,7 +68,7 @@ def test_gradients_match_reference_float32() -> None:
 
 
 @pytest.mark.parametrize("backend", ["numba", "reference"])
-def test_pose_gradient_matches_finite_differences(backend: str) -> None:
+def test_pose_gradient_matches_finite_differences(backend: Backend) -> None:
     # se(3) perturbation of each camera, left-multiplied on the world-to-camera matrix (the
     # tracking parametrisation); central differences in float64.
     scene = random_scene(n=40, c=2, seed=4, opacity_scale=0.8)
@@ -78,6 +83,7 @@ def test_pose_gradient_matches_finite_differences(backend: str) -> None:
 
     xi = torch.zeros(2, 6, dtype=torch.float64, requires_grad=True)
     loss_of(xi).backward()
+    assert xi.grad is not None
     analytic = xi.grad.clone()
     numeric = torch.zeros_like(analytic)
     eps = 1e-6

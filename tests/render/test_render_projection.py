@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import pytest
 import torch
 
@@ -29,11 +31,11 @@ def _edge_scene(n: int, c: int, seed: int, dtype: torch.dtype = torch.float64) -
     return scene
 
 
-def _both(scene: dict, near: float = 0.2, far: float = 4.0):
+def _both(scene: dict, near: float = 0.2, far: float = 4.0) -> list[tuple[dict, Any]]:
     out = []
     for project in (project_gaussians, project_gaussians_fused):
         s = leaf_copy(scene)
-        p = project(*(s[k] for k in ARGS), near_plane=near, far_plane=far)
+        p = project(*(s[k] for k in ARGS), near_plane=near, far_plane=far)  # type: ignore[misc]
         out.append((s, p))
     return out
 
@@ -85,7 +87,7 @@ def test_inplace_change_before_backward_raises() -> None:
     PyTorch one's: gradients at silently changed values are refused."""
     for project in (project_gaussians, project_gaussians_fused):
         s = leaf_copy(_edge_scene(20, 2, 8))
-        p = project(*(s[k] for k in ARGS), near_plane=0.2, far_plane=4.0)
+        p = project(*(s[k] for k in ARGS), near_plane=0.2, far_plane=4.0)  # type: ignore[misc]
         with torch.no_grad():
             s["means"].add_(0.01)
         with pytest.raises(RuntimeError, match="inplace"):
@@ -106,7 +108,8 @@ def test_camera_gradient_independent_of_thread_count() -> None:
         for n in (1, threads):
             numba.set_num_threads(n)
             s = leaf_copy(scene)
-            p = project_gaussians_fused(*(s[k] for k in ARGS), near_plane=0.2, far_plane=4.0)
+            p = project_gaussians_fused(*(s[k] for k in ARGS),  # type: ignore[misc]
+                                        near_plane=0.2, far_plane=4.0)
             (p.means2d.sum() + p.conics.sum() + p.depths.sum()).backward()
             grads.append(s["viewmats"].grad)
     finally:
@@ -140,11 +143,12 @@ def test_gradients_against_finite_differences() -> None:
     weights = [torch.rand(shape, dtype=torch.float64, generator=torch.Generator().manual_seed(
         i)) for i, shape in enumerate(((2, 12, 2), (2, 12, 3), (2, 12)))]
 
-    def f(means, quats, scales, viewmats):
+    def f(means: torch.Tensor, quats: torch.Tensor, scales: torch.Tensor,
+          viewmats: torch.Tensor) -> torch.Tensor:
         p = project_gaussians_fused(means, quats, scales, s["opacities"], viewmats, s["Ks"],
                                     s["width"], s["height"], near_plane=0.2, far_plane=4.0)
-        return sum((t * w).sum() for t, w in zip((p.means2d, p.conics, p.depths), weights,
-                                                 strict=True))
+        return torch.stack([(t * w).sum() for t, w in zip((p.means2d, p.conics, p.depths), weights,
+                                                          strict=True)]).sum()
 
     assert torch.autograd.gradcheck(f, tuple(s[k] for k in DIFFERENTIABLE), eps=1e-6,
                                     atol=1e-5, rtol=1e-4)
@@ -153,10 +157,11 @@ def test_gradients_against_finite_differences() -> None:
 def test_camera_alone_equals_camera_in_batch() -> None:
     """Each (camera, Gaussian) pair is computed on its own: bit-identical outputs."""
     scene = random_scene(n=500, c=4, seed=2, dtype=torch.float32)
-    args = [scene[k] for k in ARGS]
+    args: list[Any] = [scene[k] for k in ARGS]
     batch = project_gaussians_fused(*args)
     for c in range(4):
-        one = project_gaussians_fused(*args[:4], scene["viewmats"][c:c + 1],
+        means, quats, scales, opacities = args[:4]
+        one = project_gaussians_fused(means, quats, scales, opacities, scene["viewmats"][c:c + 1],
                                       scene["Ks"][c:c + 1], scene["width"], scene["height"])
         assert torch.equal(one.means2d[0], batch.means2d[c])
         assert torch.equal(one.conics[0], batch.conics[c])

@@ -20,7 +20,9 @@ OPACITY = 0.8
 CENTRES = [(8.3, 8.1), (24.0, 7.6), (40.2, 24.4), (56.7, 40.1), (8.5, 39.0)]
 
 
-def _scene(dtype=torch.float64):
+def _scene(dtype: torch.dtype = torch.float64) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor,
+                                                          torch.Tensor, torch.Tensor, torch.Tensor,
+                                                          torch.Tensor]:
     n = len(CENTRES)
     uv = torch.tensor(CENTRES, dtype=dtype)
     cx, cy = W / 2, H / 2

@@ -89,11 +89,11 @@ def sweep_out(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return out
 
 
-def _errors(driver) -> list[dict]:
+def _errors(driver: Any) -> list[dict]:  # selenium WebDriver
     return [e for e in driver.get_log("browser") if e["level"] == "SEVERE"]
 
 
-def _images(driver) -> list[tuple[str, bool, int]]:
+def _images(driver: Any) -> list[tuple[str, bool, int]]:
     """``(src, complete, naturalWidth)`` of the page's shown images (the 3D view's panel
     hides the images a frame does not have)."""
     return [tuple(x) for x in driver.execute_script(
@@ -101,7 +101,7 @@ def _images(driver) -> list[tuple[str, bool, int]]:
         ".map(i => [i.src, i.complete, i.naturalWidth]);")]
 
 
-def _column(driver, table: str, index: int) -> list[str]:
+def _column(driver: Any, table: str, index: int) -> list[str]:
     return driver.execute_script(
         "return Array.from(document.querySelectorAll(arguments[0] + ' tbody tr'))"
         ".filter(r => !r.hidden).map(r => r.cells[arguments[1]].textContent.trim());",
@@ -177,14 +177,14 @@ def test_report_of_a_real_sweep_in_chromium(sweep_out: Path, chromium: Any) -> N
     assert manifest["runs"] == 5 and manifest["kind"] == "sweep"
 
 
-def _slide_to(driver, position: int) -> None:
+def _slide_to(driver: Any, position: int) -> None:
     """Move the run view's frame slider the way a user does (an ``input`` event)."""
     driver.execute_script(
         "const s = document.querySelector('input.egs-view-frame'); s.value = arguments[0];"
         "s.dispatchEvent(new Event('input'));", position)
 
 
-def _view_psnrs(driver, run: Path, frames: list[int], out: Path,
+def _view_psnrs(driver: Any, run: Path, frames: list[int], out: Path,
                 views: list[np.ndarray] | None = None) -> list[float]:
     """PSNR [dB] of the 3D view at each frame (set through the slider) against
     ``render-map RUN --frame I``; the view's images are appended to ``views``."""
@@ -280,8 +280,8 @@ def test_run_view_matches_render_map(sweep_out: Path, chromium: Any, tmp_path: P
 
     chromium.execute_script("EgsViewer.views[0].setPlantedError(null);")
     _slide_to(chromium, 0)
-    position = "return EgsViewer.views[0].camera.position.toArray();"
-    before = np.array(chromium.execute_script(position))
+    camera_position = "return EgsViewer.views[0].camera.position.toArray();"
+    before = np.array(chromium.execute_script(camera_position))
     canvas = chromium.find_element(By.CSS_SELECTOR, "canvas.egs-view-canvas")
     chromium.find_element(By.CSS_SELECTOR, "button.egs-view-fly").click()
     ActionChains(chromium).move_to_element(canvas).click().key_down("w").pause(0.5) \

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import os
 import signal
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -17,7 +18,11 @@ from egs_bench.cli import main
 from egs_bench.errors import Interrupted
 from egs_bench.fileio import atomic_dir
 from egs_bench.interrupts import raise_if_interrupted, received_interruption, signals_interrupt
+from egs_bench.render import GaussianMap
 from egs_bench.runs.folder import RunFolder
+from egs_bench.slam.components import SlamComponents
+from egs_bench.slam.crf import CameraResponse
+from egs_bench.slam.tracker import TrackRequest, TrackResult
 
 
 class _SignalsInDel:
@@ -134,7 +139,7 @@ def test_a_generator_with_a_swallowed_signal_exits_as_interrupted(
 
     add_frame = SequenceWriter.add_frame
 
-    def add_frame_then_signal(self, *args: Any, **kwargs: Any) -> None:
+    def add_frame_then_signal(self: SequenceWriter, *args: Any, **kwargs: Any) -> None:
         add_frame(self, *args, **kwargs)
         _swallowed_sigterm()
 
@@ -172,7 +177,8 @@ def test_handlers_are_restored_after_the_block() -> None:
     assert signal.getsignal(signal.SIGTERM) is before
 
 
-def _register_monogs_with(monkeypatch, name: str, components) -> str:
+def _register_monogs_with(monkeypatch: pytest.MonkeyPatch, name: str,
+                          components: SlamComponents) -> str:
     """Register ``monogs`` with its SLAM ``components`` replaced, as ``name`` (for this test);
     the CLI runs it like any method."""
     import dataclasses
@@ -198,7 +204,8 @@ def test_a_run_with_a_swallowed_signal_stops_at_the_next_frame(tmp_path: Path, r
     tracked: list[int] = []
 
     class TrackThenSignal(GradientTracker):
-        def track(self, gmap, crf, request):
+        def track(self, gmap: GaussianMap, crf: CameraResponse, request: TrackRequest
+                  ) -> TrackResult:
             result = super().track(gmap, crf, request)
             tracked.append(result.state.index)
             if len(tracked) == 1:
@@ -230,7 +237,8 @@ def test_a_signal_swallowed_in_map_initialisation_stops_it(tmp_path: Path, room_
     mappers: list[Mapper] = []
 
     class SignalInFirstIteration(Mapper):
-        def optimise(self, *args: Any, report=None, **kwargs: Any) -> float:
+        def optimise(self, *args: Any, report: Callable[[int, int], None] | None = None,
+                     **kwargs: Any) -> float:
             def report_then_signal(done: int, total: int) -> None:
                 if done == 0:
                     _swallowed_sigterm()

@@ -58,14 +58,15 @@ def test_file_outputs_never_replace_a_folder(command: str, overwrite: bool, tmp_
                                              capsys: pytest.CaptureFixture[str]) -> None:
     target = _user_folder(tmp_path / "d")
     before = _snapshot(target)
-    argv = {
+    argvs: dict[str, list[str | Path]] = {
         "show": ["show", tiny_sequence, "--frame", "1", "--out", target],
         "render-map": ["render-map", _ply(tmp_path), "-o", target, "--width", "16",
                        "--height", "12"],
         "render-demo": ["render-demo", "-o", target],
         "leaderboard": ["leaderboard", done_run.path.parent, "-o", target,
                         "--metrics", "ate", "--no-eval"],
-    }[command] + (["--overwrite"] if overwrite else [])
+    }
+    argv = argvs[command] + (["--overwrite"] if overwrite else [])
     code, _, err = run_cli(capsys, *argv)
     expected = ("is a folder: --overwrite only replaces" if overwrite
                 else "already exists and is a folder; choose another")
@@ -114,7 +115,8 @@ def test_run_into_a_finished_run_needs_overwrite_and_keeps_user_files(
         tmp_path: Path, room_sequence: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     out = tmp_path / "run"
-    argv = ["run", "--method", "monogs", "--seq", room_sequence, "--out", out, *QUICK_RUN]
+    argv: list[str | Path] = ["run", "--method", "monogs", "--seq", room_sequence, "--out", out,
+                              *QUICK_RUN]
     assert run_cli(capsys, *argv)[0] == 0
     assert run_cli(capsys, "eval", out)[0] == 0
     (out / "my_notes.txt").write_text("keep me\n")
@@ -178,7 +180,8 @@ def test_generated_sequences_are_replaced_only_when_clean_and_asked(
         tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     out = tmp_path / "seq"
-    argv = ["make-synthetic", "--scene", "office", "--out", out, "--frames", "2", "--width",
+    argv: list[str | Path] = ["make-synthetic", "--scene", "office", "--out", out, "--frames",
+                              "2", "--width",
             "32", "--height", "24", "--no-progress"]
     assert run_cli(capsys, *argv)[0] == 0
     first = _snapshot(out)

@@ -162,6 +162,22 @@ def test_run_config_reproduces_the_trajectory_byte_for_byte(method: str, tiny_se
     assert_cli_error(code, err, 2, "--config re-runs the stored --seed")
 
 
+def test_run_config_without_out_writes_where_run_does(tiny_sequence: Path, tmp_path: Path,
+                                                      capsys: pytest.CaptureFixture[str],
+                                                      monkeypatch: pytest.MonkeyPatch) -> None:
+    from egs_bench.runs.locations import run_location
+
+    first = tmp_path / "first"
+    code, err = _run(["--method", "monogs", "--seq", str(tiny_sequence), "--out", str(first),
+                      *QUICK, "--max-frames", "2"], capsys)
+    assert code == 0, err
+    monkeypatch.chdir(tmp_path)
+    code, err = _run(["--config", str(first / "config.yaml"), "--quiet"], capsys)
+    assert code == 0, err
+    default = tmp_path / run_location(Path(), "plane", "monogs")
+    assert (default / "trajectory.txt").read_bytes() == (first / "trajectory.txt").read_bytes()
+
+
 def test_run_config_refuses_a_run_made_with_other_components(tiny_sequence: Path, tmp_path: Path,
                                                              capsys: pytest.CaptureFixture[str]
                                                              ) -> None:
@@ -174,7 +190,9 @@ def test_run_config_refuses_a_run_made_with_other_components(tiny_sequence: Path
     (first / "config.yaml").write_text(yaml.safe_dump(stored))
     code, err = _run(["--config", str(first / "config.yaml"), "--out", str(tmp_path / "x")],
                      capsys)
-    assert_cli_error(code, err, 2, "the run's tracker are not those of method 'egs'")
+    assert_cli_error(code, err, 2, "the run was made with other parts than method 'egs' has: "
+                     "tracker oracle_tracking:oracle_components.<locals>.tracker (the method's: "
+                     "egs_bench.slam.tracker:GradientTracker)")
 
 
 def test_a_config_yaml_in_the_earlier_layouts_still_loads_and_reruns(

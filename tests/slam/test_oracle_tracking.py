@@ -6,8 +6,10 @@ import csv
 import importlib.util
 import io
 import math
+from collections.abc import Callable
 from pathlib import Path
 from types import ModuleType, SimpleNamespace
+from typing import Any
 
 import numpy as np
 import pytest
@@ -31,12 +33,13 @@ def _script() -> ModuleType:
 def _camera_to_world(x: float, yaw_deg: float) -> np.ndarray:
     pose = np.eye(4)
     c, s = math.cos(math.radians(yaw_deg)), math.sin(math.radians(yaw_deg))
-    pose[:3, :3] = [[c, 0, s], [0, 1, 0], [-s, 0, c]]
+    pose[:3, :3] = np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
     pose[:3, 3] = [x, 0.3, -1.2]
     return pose
 
 
-def _fake_sequence(exposure) -> tuple[SimpleNamespace, np.ndarray]:
+def _fake_sequence(exposure: Callable[[int], tuple[int, int]]
+                   ) -> tuple[SimpleNamespace, np.ndarray]:
     """A sequence moving 0.1 m along x and turning 5 deg over 1 s (dense poses every 0.1 s),
     with the given ``exposure(i) -> (start_us, end_us)``; returns it and its poses
     (camera-to-world [11, 4, 4])."""
@@ -65,7 +68,7 @@ class _FakeTracker:
     def __init__(self, truth_wc: np.ndarray, offset: np.ndarray) -> None:
         self.truth_wc, self.offset = truth_wc, offset
 
-    def track(self, gmap, crf, request):
+    def track(self, gmap: Any, crf: Any, request: TrackRequest) -> TrackResult:
         i = request.obs.index
         truth_cw = invert_pose(self.truth_wc[i + 1])
         start_cw = invert_pose(self.truth_wc[i])
@@ -82,7 +85,7 @@ def test_oracle_until_keeps_the_trackers_estimates_after_n_and_records_errors() 
     for i in range(3):
         obs = SimpleNamespace(index=i, fractions=np.linspace(0, 1, 4))
         init = FrameState(i, invert_pose(truth_wc[i]), invert_pose(truth_wc[i]))
-        state = tracker.track(None, None, TrackRequest(obs, init)).state
+        state = tracker.track(None, None, TrackRequest(obs, init)).state  # type: ignore[arg-type]
         substituted = np.allclose(state.pose1_cw, invert_pose(truth_wc[i + 1]), atol=1e-9)
         assert substituted == (i <= 1), i
         assert (state.exp_a, state.exp_b) == (0.1, 0.2)  # exposure stays the tracker's
@@ -117,16 +120,21 @@ class _RecordingMapper:
     def __init__(self) -> None:
         self.seen: list[np.ndarray] = []
 
-    def optimise(self, states, observations, window, all_keyframes, iterations, *,
-                 initial=False, fixed_end_pose=0, report=None) -> float:
+    def optimise(self, states: dict[int, FrameState], observations: dict[int, Any],
+                 window: list[int], all_keyframes: list[int], iterations: int, *,
+                 initial: bool = False, fixed_end_pose: int | None = 0,
+                 report: Any = None) -> float:
         return self.begin_round(states, observations, window, all_keyframes, iterations).close()
 
-    def begin_round(self, states, observations, window, all_keyframes, iterations, *,
-                    initial=False, fixed_end_pose=0, report=None) -> _EmptyRound:
+    def begin_round(self, states: dict[int, FrameState], observations: dict[int, Any],
+                    window: list[int], all_keyframes: list[int], iterations: int, *,
+                    initial: bool = False, fixed_end_pose: int | None = 0,
+                    report: Any = None) -> _EmptyRound:
         self.seen.append(states[0].pose0_cw.copy())
         return _EmptyRound(window)
 
-    def refine(self, states, observations, keyframes, iterations) -> float:
+    def refine(self, states: dict[int, FrameState], observations: dict[int, Any],
+               keyframes: list[int], iterations: int) -> float:
         return 0.0
 
 

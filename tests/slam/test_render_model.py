@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 import torch
 
-from egs_bench.render.rasterize import rasterize
+from egs_bench.render.rasterize import RasterResult, rasterize
 from egs_bench.slam import losses
 from egs_bench.slam.config import cpu_preset
-from egs_bench.slam.crf import make_crf
+from egs_bench.slam.crf import LeakyPiecewiseLinearCRF, make_crf
 from egs_bench.slam.frames import FrameObs
 from egs_bench.slam.render_model import (
     blur_loss,
@@ -19,12 +19,13 @@ from egs_bench.slam.render_model import (
 )
 
 
-def _raster(rgb: torch.Tensor, depth: torch.Tensor, alpha: torch.Tensor | None = None):
-    """A stand-in RasterResult with the given renders [C, H, W, 3] / [C, H, W]."""
-    from egs_bench.render.rasterize import RasterResult
-
+def _raster(rgb: torch.Tensor, depth: torch.Tensor, alpha: torch.Tensor | None = None
+            ) -> RasterResult:
+    """A stand-in RasterResult with the given renders [C, H, W, 3] / [C, H, W] (the
+    per-Gaussian outputs, which the loss does not read, empty)."""
     a = torch.ones_like(depth) if alpha is None else alpha
-    return RasterResult(rgb, depth, depth / a, a, None, None, None, None)
+    none = torch.empty(0)
+    return RasterResult(rgb, depth, depth / a, a, None, none, none, none)
 
 
 def _obs(rgb: torch.Tensor, depth: torch.Tensor, fractions: list[float],
@@ -119,8 +120,9 @@ def test_batched_loss_is_the_sum_of_per_frame_losses() -> None:
         targets = [prepare_targets(o, cfg, (0.25, 0.3), tracking=tracking, use_events=True)
                    for o in frames]
         pairs = enumerate(zip(renders, targets, strict=True))
-        single = sum(blur_loss(_raster(*r), t, crf, exp_ab[i:i + 1], cfg, tracking=tracking,
-                               eps=1e-3) for i, (r, t) in pairs)
+        single = torch.stack([blur_loss(_raster(*r), t, crf, exp_ab[i:i + 1], cfg,
+                                        tracking=tracking, eps=1e-3)
+                              for i, (r, t) in pairs]).sum()
         batched = blur_loss(_raster(*(torch.cat(x) for x in zip(*renders, strict=True))),
                             stack_targets(targets), crf, exp_ab, cfg, tracking=tracking, eps=1e-3)
         assert batched.item() == pytest.approx(single.item(), rel=1e-12)
@@ -173,7 +175,7 @@ def test_fixed_response_backward_matches_finite_differences(kind: str) -> None:
     frozen = crf.frozen()
     rng = torch.Generator().manual_seed(0)
     hdr = torch.cat([torch.rand(20, generator=rng) * 3 - 0.5]).double()
-    if kind == "learnable":
+    if isinstance(crf, LeakyPiecewiseLinearCRF):
         nodes = crf.nodes().detach().double()
         near_kink = (hdr[:, None] - torch.cat([nodes, torch.tensor([0.0, 1.0]).double()])
                      ).abs().min(1).values < 1e-3
@@ -219,7 +221,7 @@ def test_blurred_prediction_is_the_response_of_the_mean_linear_render(
     # values above 1 reach the curve's saturating end.
     hdr = rng.uniform(0.02, 1.4, size=(views, subposes, h, w, 3))
     crf = make_crf(kind, 8, 0.01, "srgb").double()
-    if kind == "learnable":
+    if isinstance(crf, LeakyPiecewiseLinearCRF):
         with torch.no_grad():  # nodes away from the sRGB start: a generic monotone curve
             crf.gap_logits.add_(torch.from_numpy(rng.normal(scale=0.5, size=7)))
         nodes = crf.nodes().detach().numpy()
