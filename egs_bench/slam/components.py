@@ -25,7 +25,7 @@ import numpy as np
 
 from egs_bench.errors import ConfigError
 from egs_bench.render import GaussianMap
-from egs_bench.slam.config import GROUPS, KeyframeConfig
+from egs_bench.slam.config import GROUPS, KeyframeConfig, LossConfig
 from egs_bench.slam.context import SlamContext
 from egs_bench.slam.crf import CameraResponse
 from egs_bench.slam.frames import FrameObs, FrameState
@@ -159,6 +159,7 @@ class SlamComponents:
         for role, group in ROLE_GROUPS.items():
             declared = getattr(getattr(self, role), "Config", None)
             out[group] = declared if declared is not None else GROUPS[group]
+        out["loss"] = loss_config_class(self.loss_terms)
         return out
 
     def record(self) -> dict[str, Any]:
@@ -172,4 +173,25 @@ class SlamComponents:
             for role, group in ROLE_GROUPS.items()}
         out["loss_terms"] = [{"name": term.name, "value": import_path(term.value)}
                              for term in self.loss_terms]
+        out["loss_config_class"] = import_path(classes["loss"])
         return out
+
+
+def loss_config_class(terms: tuple[LossTerm, ...]) -> type:
+    """The ``loss`` group's class for ``terms``: the most derived of the terms' ``config``
+    classes (each term's fields are then in it), or :class:`LossConfig`.
+
+    Raises:
+        TypeError: two terms declare configs neither of which extends the other (make one
+            term's config extend the other's, so one class holds both terms' fields).
+    """
+    chosen: type = LossConfig
+    for term in terms:
+        if term.config is None or issubclass(chosen, term.config):
+            continue
+        if not issubclass(term.config, chosen):
+            raise TypeError(f"loss term {term.name!r} declares {term.config.__name__}, "
+                            f"unrelated to {chosen.__name__} of another term: one must extend "
+                            "the other")
+        chosen = term.config
+    return chosen

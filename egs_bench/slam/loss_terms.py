@@ -13,7 +13,8 @@ A :class:`LossTerm` is
 The loss of a batch is the sum of every term's values (:func:`~egs_bench.slam.render_model.
 blur_loss`). The built-in terms fold their weight and the ``1 / (number of values)`` of their
 mean into the prepared masks, so an iteration costs a few weighted sums. Adding a term is one
-function pair here (or in a user's module) plus the configuration field that weights it; pass
+function pair here (or in a user's module) plus the configuration field that weights it (a
+user's term declares it in its ``config``, an extension of the ``loss`` group); pass
 the extended tuple as :attr:`~egs_bench.slam.components.SlamComponents.loss_terms`.
 ``docs/guide/extending.md`` has a worked example.
 """
@@ -70,12 +71,19 @@ class TermSetup:
 
 @dataclass(frozen=True)
 class LossTerm:
-    """One named, weighted term; see the module docstring."""
+    """One named, weighted term; see the module docstring.
+
+    Attributes:
+        config: the class of the ``loss`` group that holds this term's settings (its weight):
+            a frozen dataclass extending :class:`~egs_bench.slam.config.LossConfig`, with
+            ``RANGES`` for its own fields; None: the built-in ``LossConfig``.
+    """
 
     name: str
     weight: Callable[[SlamConfig], float]
     prepare: Callable[[FrameObs, TermSetup, float], Prepared | None]
     value: Callable[[RenderedViews, Prepared], torch.Tensor]
+    config: type | None = None
 
 
 # ---------------------------------------------------------------------- photometric (L_I)

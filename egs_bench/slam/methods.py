@@ -184,6 +184,8 @@ def rerun(config_file: str | Path, out: str | Path | None = None, *,
 
 def _part_name(record: Any) -> str:
     """A recorded part in a message: its import path, or its loss terms' names."""
+    if isinstance(record, str):
+        return record
     if isinstance(record, dict):
         return str(record.get("target"))
     if isinstance(record, list):

@@ -141,6 +141,32 @@ def test_config_yaml_names_each_component_so_an_oracle_run_differs_from_egs() ->
     assert oracle["keyframes"] == plain["keyframes"]
 
 
+def test_the_loss_group_takes_the_most_derived_config_of_its_terms() -> None:
+    from egs_bench.slam.config import LossConfig
+    from egs_bench.slam.loss_terms import LOSS_TERMS, LossTerm
+
+    @dataclass(frozen=True)
+    class First(LossConfig):
+        a: float = 0.0
+
+    @dataclass(frozen=True)
+    class Second(First):
+        b: float = 0.0
+
+    @dataclass(frozen=True)
+    class Other(LossConfig):
+        c: float = 0.0
+
+    def term(name: str, config: type) -> LossTerm:
+        return dataclasses.replace(LOSS_TERMS[0], name=name, config=config)
+
+    both = SlamComponents(loss_terms=(*LOSS_TERMS, term("a", First), term("b", Second)))
+    assert both.config_classes()["loss"] is Second
+    assert SlamComponents().config_classes()["loss"] is LossConfig
+    with pytest.raises(TypeError, match="'c' declares Other, unrelated to First"):
+        SlamComponents(loss_terms=(term("a", First), term("c", Other))).config_classes()
+
+
 @pytest.mark.parametrize("method", ["egs", METHOD_PATH])
 def test_run_config_reproduces_the_trajectory_byte_for_byte(method: str, tiny_sequence: Path,
                                                             tmp_path: Path,

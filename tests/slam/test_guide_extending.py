@@ -16,6 +16,8 @@ import pytest
 import torch
 import yaml
 
+from egs_bench.errors import ConfigError
+
 GUIDE = Path(__file__).resolve().parents[2] / "docs" / "guide" / "extending.md"
 
 
@@ -86,7 +88,8 @@ def test_the_guides_run_uses_its_keyframe_rule_tracker_and_loss_weight(guide_nam
     assert list(run.read_keyframes()) == [0, 2, 4]
     assert sorted(guide_namespace["iterations_by_frame"]) == [1, 2, 3, 4, 5]
     cfg = yaml.safe_load((guide_folder / "runs" / "egs-depth-tv" / "config.yaml").read_text())
-    assert cfg["slam"]["extra"] == {"lambda_depth_tv": 0.1}
+    assert cfg["slam"]["loss"]["lambda_depth_tv"] == 0.1 and cfg["slam"]["extra"] == {}
+    assert cfg["components"]["loss_config_class"] == "guide:DepthTvConfig"
     from egs_bench.runs.registry import get_method
 
     assert get_method("egs-depth-tv") is guide_namespace["METHOD"]
@@ -100,8 +103,11 @@ def test_the_guides_loss_term_on_a_depth_ramp(guide_namespace: dict) -> None:
     from egs_bench.slam.loss_terms import RenderedViews, TermSetup
 
     term = guide_namespace["DEPTH_TV"]
-    cfg = cpu_preset().replace(**{"extra.lambda_depth_tv": 0.5})
-    assert term.weight(cfg) == 0.5 and term.weight(cpu_preset()) == 0.0
+    with_term = cpu_preset().with_groups({"loss": term.config})
+    cfg = with_term.replace(**{"loss.lambda_depth_tv": 0.5})
+    assert term.weight(cfg) == 0.5 and term.weight(with_term) == 0.0
+    with pytest.raises(ConfigError, match=r"SLAM option loss.lambda_depth_tv must be >= 0"):
+        with_term.replace(**{"loss.lambda_depth_tv": -1.0}).validate()
     h, w = 4, 6
     ones = torch.ones(h, w, dtype=torch.bool)
     obs = FrameObs(0, torch.zeros(h, w, 3, dtype=torch.float64),
