@@ -2,6 +2,7 @@
 baseline refresh, the CLI's exit code."""
 
 import json
+from collections.abc import Mapping
 from pathlib import Path
 
 import pandas as pd
@@ -22,7 +23,7 @@ from egs_bench.runs.folder import RunFolder
 from tests.helpers.cli import assert_cli_error
 
 
-def _runs(root, values: dict[tuple[str, str, int], tuple[float, float] | str]):
+def _runs(root: Path, values: Mapping[tuple[str, str, int], tuple[float, float] | str]) -> Path:
     """values[(method, sequence, seed)] = (ate_m, psnr_db) or a failure kind."""
     for (method, seq, seed), v in values.items():
         run = RunFolder.create(root / seq / method / f"seed{seed}", method=method,
@@ -38,8 +39,9 @@ def _runs(root, values: dict[tuple[str, str, int], tuple[float, float] | str]):
     return root
 
 
-BASE = {("egs", "s1", 0): (0.010, 30.0), ("egs", "s1", 1): (0.012, 30.2),
-        ("monogs", "s1", 0): (0.020, 28.0), ("egs", "s2", 0): (0.015, 25.0)}
+BASE: dict[tuple[str, str, int], tuple[float, float] | str] = {
+    ("egs", "s1", 0): (0.010, 30.0), ("egs", "s1", 1): (0.012, 30.2),
+    ("monogs", "s1", 0): (0.020, 28.0), ("egs", "s2", 0): (0.015, 25.0)}
 
 
 def test_regress_passes_on_identical_and_small_changes(tmp_path: Path) -> None:

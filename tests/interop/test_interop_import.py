@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import shutil
+from collections.abc import Sequence as Sequence_
 from pathlib import Path
 from typing import Any
 
@@ -14,12 +15,13 @@ import cv2
 import numpy as np
 import pytest
 
-from egs_bench.baselines.import_runs import import_external_run, monogs_kept_frames
 from egs_bench.datasets.sequence import Sequence
 from egs_bench.errors import ConfigError, InputError, OutputError, UnwritableOutputError
 from egs_bench.eval.evaluate import evaluate_run
 from egs_bench.geometry import invert_pose, pose_from_tq, pose_to_tq
 from egs_bench.interop.export import export_sequence
+from egs_bench.interop.importing import import_external_run
+from egs_bench.interop.monogs import monogs_kept_frames
 from tests.helpers.cli import assert_cli_error
 from tests.helpers.interop_consumers import monogs_tum_parser, retimed_copy
 
@@ -63,7 +65,7 @@ def _estimated(seq: Sequence, noise: float = 0.002, seed: int = 0) -> np.ndarray
     return np.einsum("ij,njk->nik", invert_pose(seq.poses[0]), poses)
 
 
-def _orbslam_lines(stamps, poses, value_precision: int) -> str:
+def _orbslam_lines(stamps: np.ndarray, poses: np.ndarray, value_precision: int) -> str:
     """``f << fixed << setprecision(6) << t << " " << setprecision(p) << tx ... qw``."""
     t, q = pose_to_tq(poses)
     lines = []
@@ -73,8 +75,9 @@ def _orbslam_lines(stamps, poses, value_precision: int) -> str:
 
 
 def _orbslam_folder(folder: Path, seq: Sequence, lost: tuple[int, ...] = (3,),
-                    keyframes: tuple[int, ...] = (0, 4, 8), stamps=None,
-                    names=("CameraTrajectory.txt", "KeyFrameTrajectory.txt")) -> np.ndarray:
+                    keyframes: tuple[int, ...] = (0, 4, 8), stamps: np.ndarray | None = None,
+                    names: tuple[str, str] = ("CameraTrajectory.txt", "KeyFrameTrajectory.txt")
+                    ) -> np.ndarray:
     folder.mkdir(parents=True, exist_ok=True)
     stamps = seq.timestamps_s if stamps is None else stamps
     est = _estimated(seq)
@@ -96,7 +99,8 @@ def test_orbslam2_folder(seq: Sequence, export: Path, tmp_path: Path) -> None:
     tracked = [i for i in range(len(seq)) if i != 3]
     np.testing.assert_allclose(traj.timestamps, seq.timestamps_s[tracked], atol=1e-9)
     np.testing.assert_allclose(traj.poses, est[tracked], atol=2e-6)
-    assert run.read_keyframes().tolist() == [0, 4, 8]
+    keyframes = run.read_keyframes()
+    assert keyframes is not None and keyframes.tolist() == [0, 4, 8]
     m = evaluate_run(run.path)
     assert m["ate"]["n_matched"] == 9 and m["ate"]["rmse_m"] < 0.006  # the 2 mm noise
     assert any("ATE over 9 of 10 frames" in n for n in m["notes"])
@@ -110,7 +114,8 @@ def test_orbslam2_keyframe_file_alone_is_marked(seq: Sequence, export: Path,
     run = import_external_run(tmp_path / "orb" / "KeyFrameTrajectory.txt", tmp_path / "run",
                               fmt="orbslam2", export_dir=export)
     assert run.estimate["poses"] == "keyframes"
-    assert run.read_keyframes().tolist() == [0, 4, 8]
+    keyframes = run.read_keyframes()
+    assert keyframes is not None and keyframes.tolist() == [0, 4, 8]
     m = evaluate_run(run.path)
     assert m["ate"]["n_matched"] == 3 and m["ate"]["estimate_poses"] == "keyframes"
     # ORB-SLAM wrote the file at shutdown: it read all 10 frames (not the last keyframe's
@@ -139,8 +144,9 @@ def test_retimed_export_maps_back_to_sequence_stamps(seq_path: Path, tmp_path: P
 
 
 # ---------------------------------------------------------------- Photo-SLAM
-def _photoslam_folder(folder: Path, seq: Sequence, export: Path, keyframes=(0, 4, 8),
-                      size=None) -> dict[int, np.ndarray]:
+def _photoslam_folder(folder: Path, seq: Sequence, export: Path,
+                      keyframes: tuple[int, ...] = (0, 4, 8), size: tuple[int, int] | None = None
+                      ) -> dict[int, np.ndarray]:
     _orbslam_folder(folder, seq, lost=(), keyframes=keyframes,
                     names=("CameraTrajectory_TUM.txt", "KeyFrameTrajectory_TUM.txt"))
     shutdown = folder / "30000_shutdown"
@@ -152,7 +158,9 @@ def _photoslam_folder(folder: Path, seq: Sequence, export: Path, keyframes=(0, 4
         img = rng.integers(0, 256, (*(size or (seq.height, seq.width)), 3), dtype=np.uint8)
         # recordKeyframeRendered: RGB float -> cvtColor(RGB2BGR) -> imwrite "<iter>_<kfid>.jpg"
         cv2.imwrite(str(shutdown / "image" / f"30000_{kfid}.jpg"), img[:, :, ::-1])
-        written[frame] = cv2.imread(str(shutdown / "image" / f"30000_{kfid}.jpg"))[:, :, ::-1]
+        image = cv2.imread(str(shutdown / "image" / f"30000_{kfid}.jpg"))
+        assert image is not None
+        written[frame] = image[:, :, ::-1]
         cameras.append({"id": kfid, "img_name": f"rgb/{frame:06d}.png", "width": seq.width,
                         "height": seq.height, "position": [0, 0, 0],
                         "rotation": np.eye(3).tolist(), "fy": 1.0, "fx": 1.0})
@@ -184,14 +192,15 @@ def test_photoslam_render_of_the_wrong_size(seq: Sequence, export: Path, tmp_pat
 
 
 # ---------------------------------------------------------------- MonoGS
-def _monogs_result(folder: Path, seq: Sequence, uids=(0, 3, 6, 9), frames=None) -> np.ndarray:
+def _monogs_result(folder: Path, seq: Sequence, uids: Sequence_[int] = (0, 3, 6, 9),
+                   frames: Sequence_[int] | None = None) -> np.ndarray:
     """``plot/trj_final.json`` as ``eval_ate`` writes it (json.dump, indent=4, c2w lists),
     plus its stats and rendering results."""
-    frames = list(uids) if frames is None else list(frames)
-    est = _estimated(seq)[frames]
+    rows = list(uids) if frames is None else list(frames)
+    est = _estimated(seq)[rows]
     (folder / "plot").mkdir(parents=True)
     data = {"trj_id": list(uids), "trj_est": [p.tolist() for p in est],
-            "trj_gt": [p.tolist() for p in seq.poses[frames]]}
+            "trj_gt": [p.tolist() for p in seq.poses[rows]]}
     (folder / "plot" / "trj_final.json").write_text(json.dumps(data, indent=4))
     (folder / "plot" / "stats_final.json").write_text(json.dumps(
         {"rmse": 0.01, "mean": 0.009, "median": 0.008, "std": 0.002, "min": 0.0, "max": 0.02,
@@ -215,7 +224,8 @@ def test_monogs_result_folder(seq: Sequence, export: Path, tmp_path: Path) -> No
     np.testing.assert_allclose(traj.timestamps, seq.timestamps_s[[0, 3, 6, 9]], atol=1e-9)
     np.testing.assert_allclose(traj.poses, est, atol=1e-9)
     assert run.estimate["poses"] == "keyframes"
-    assert run.read_keyframes().tolist() == [0, 3, 6, 9]
+    keyframes = run.read_keyframes()
+    assert keyframes is not None and keyframes.tolist() == [0, 3, 6, 9]
     reported = json.loads((run.path / "reported_metrics.json").read_text())
     assert reported["ate_stats"]["rmse"] == 0.01
     assert reported["rendering_before_opt"]["mean_psnr"] == 25.0
@@ -279,7 +289,8 @@ def test_monogs_ply_is_rendered_at_the_imported_poses(seq: Sequence, export: Pat
 
 
 # ---------------------------------------------------------------- RampVO
-def _rampvo_file(path: Path, seq: Sequence, frames, scale: float = 0.5) -> np.ndarray:
+def _rampvo_file(path: Path, seq: Sequence, frames: list[int] | np.ndarray, scale: float = 0.5
+                 ) -> np.ndarray:
     """evaluate.py: traj_est from lietorch (t xyz, q xyzw, camera-to-world), wrapped by
     PoseTrajectory3D with ``orientations_quat_wxyz=traj_est[:, 3:][:, (1, 2, 3, 0)]`` and image
     stamps in seconds, then ``save_results``: ``np.savetxt`` of ``t * 1e-9``, positions and
@@ -406,7 +417,8 @@ def _tum_estimate(path: Path, seq: Sequence, offset_s: float = 0.0) -> Path:
     return path
 
 
-def _renders(folder: Path, seq: Sequence, frames=(0, 5), size=None) -> Path:
+def _renders(folder: Path, seq: Sequence, frames: tuple[int, ...] = (0, 5),
+             size: tuple[int, int] | None = None) -> Path:
     folder.mkdir()
     for f in frames:
         img = np.full((*(size or (seq.height, seq.width)), 3), 40 + f, dtype=np.uint8)
@@ -424,8 +436,8 @@ def test_tum_import_validates_as_eval_would(seq: Sequence, tmp_path: Path,
     """A missing or corrupt sequence folder, an estimate 100 s off the ground truth, renders
     of the wrong size or truncated: each is refused with one line naming the file, and no
     run folder is left (a retry needs no --overwrite)."""
-    from egs_bench.baselines.import_runs import import_tum_run
     from egs_bench.cli import main
+    from egs_bench.interop.importing import import_tum_run
 
     est = _tum_estimate(tmp_path / "est.txt", seq)
     off = _tum_estimate(tmp_path / "off.txt", seq, offset_s=100.0)
@@ -483,11 +495,11 @@ def test_external_import_with_a_bad_render_leaves_nothing(seq: Sequence, export:
     # a failure after the run folder was created (disk full while writing a render)
     from egs_bench.runs.folder import RunFolder
 
-    def full_disk(self, index, image) -> None:
+    def full_disk(self: Any, index: int, image: np.ndarray) -> None:
         raise OSError(28, "No space left on device")
 
     original = RunFolder.write_render
-    RunFolder.write_render = full_disk  # type: ignore[method-assign]
+    RunFolder.write_render = full_disk  # type: ignore[method-assign, assignment]
     try:
         with pytest.raises(UnwritableOutputError, match=f"{out}: cannot write: the disk is full"):
             import_external_run(tmp_path / "ps", out, fmt="photoslam", export_dir=export)

@@ -47,7 +47,8 @@ def rig(tmp_path_factory: pytest.TempPathFactory) -> Rig:
 
 
 def _spec(rig: Rig, **kw: Any) -> RecordingSpec:
-    args = dict(events=rig.bag, depth=rig.bag, gt=rig.bag, calib=rig.calib, preset=PRESET,
+    args: dict[str, Any] = dict(events=rig.bag, depth=rig.bag, gt=rig.bag, calib=rig.calib,
+                                preset=PRESET,
                 camera_info_topic="/dvs/camera_info")
     args.update(kw)
     return RecordingSpec(**args)
@@ -119,7 +120,9 @@ def test_rig_depth_reprojected_into_the_event_camera(rig: Rig, imported: Path) -
 
             stream = BagFile(rig.bag).depth_stream("/camera/depth/image_rect_raw", 1000.0)
             [(_, raw)] = list(stream.load([0]))
-            rays = load_calib(rig.calib).depth_camera.pixel_rays()
+            depth_camera = load_calib(rig.calib).depth_camera
+            assert depth_camera is not None
+            rays = depth_camera.pixel_rays()
             wrong = reproject_depth(raw, rays, np.eye(4), seq.intrinsics)
             hit_w = wrong > 0
             ok_w = (wrong >= lo - 0.002 - 0.005 * lo) & (wrong <= hi + 0.002 + 0.005 * hi)
@@ -420,6 +423,7 @@ def test_make_calib_from_kalibr_and_presets_listing(tmp_path: Path,
     from egs_bench.recordings import load_calib
 
     calib = load_calib(out)
+    assert calib.event_camera is not None
     assert calib.event_camera.model == "equidistant" and calib.depth_on_event_grid
     assert calib.depth_camera == calib.event_camera
     assert calib.event_camera.cx == 173.6

@@ -11,19 +11,20 @@ import torch
 from egs_bench.errors import ConfigError
 from egs_bench.render import constants as RC
 from egs_bench.render import project_gaussians, rasterize
-from egs_bench.render.rasterize import Backend
+from egs_bench.render.rasterize import Backend, RasterResult
 from tests.helpers.render_scenes import random_scene
 
 FIELDS = ("rgb", "depth", "expected_depth", "alpha")
 
 
-def _both(scene, **kw: Any):
+def _both(scene: dict[str, Any], **kw: Any) -> tuple[RasterResult, RasterResult]:
     return rasterize(**scene, backend="reference", **kw), rasterize(**scene, backend="numba", **kw)
 
 
-def _assert_same(ref, out, atol) -> None:
+def _assert_same(ref: RasterResult, out: RasterResult, atol: float) -> None:
     for f in FIELDS:
         torch.testing.assert_close(getattr(out, f), getattr(ref, f), atol=atol, rtol=0, msg=f)
+    assert out.visibility is not None and ref.visibility is not None
     assert torch.equal(out.visibility, ref.visibility)
     assert torch.equal(out.radii, ref.radii)
 
@@ -74,7 +75,7 @@ def test_single_gaussian_matches_closed_form() -> None:
     torch.testing.assert_close(out.depth[0], z * alpha, atol=1e-12, rtol=0)
     hit = alpha > 0
     torch.testing.assert_close(out.expected_depth[0][hit], torch.full_like(alpha[hit], z))
-    assert bool(out.visibility[0, 0])
+    assert out.visibility is not None and bool(out.visibility[0, 0])
     r = math.sqrt(2 * math.log(255 * o) * var)
     assert abs(int(out.radii[0, 0]) - math.ceil(r)) <= 1
 
@@ -90,7 +91,7 @@ def test_projection_matches_pinhole_and_autograd_jacobian() -> None:
         torch.testing.assert_close(proj.means2d[c], uv)
         for i in range(3):
             # Sigma_2d from the Jacobian of the pinhole map computed by autograd
-            def pix(p, K=K):
+            def pix(p: torch.Tensor, K: torch.Tensor = K) -> torch.Tensor:
                 return p[:2] / p[2] * K.diagonal()[:2]
             J = torch.autograd.functional.jacobian(pix, pc[i])
             R = scene["viewmats"][c, :3, :3]
@@ -118,6 +119,7 @@ def test_empty_scene_gives_background(backend: Backend) -> None:
     scene = random_scene(n=0, c=2, seed=0)
     bg = torch.tensor([[0.1, 0.2, 0.3], [1.0, 0.0, 0.5]], dtype=torch.float64)
     out = rasterize(**scene, backgrounds=bg, backend=backend)
+    assert out.visibility is not None
     assert out.rgb.shape == (2, 24, 32, 3) and out.visibility.shape == (2, 0)
     torch.testing.assert_close(out.rgb, bg[:, None, None, :].expand(2, 24, 32, 3))
     assert out.alpha.abs().max() == 0 and out.depth.abs().max() == 0
@@ -138,6 +140,7 @@ def test_behind_camera_and_off_image_gaussians_contribute_nothing(backend: Backe
     out = rasterize(**s, backend=backend)
     for f in FIELDS:
         torch.testing.assert_close(getattr(out, f), getattr(base, f), atol=1e-14, rtol=0)
+    assert out.visibility is not None
     assert not out.visibility[0, -4:].any() and (out.radii[0, -4:] == 0).all()
 
 
@@ -174,6 +177,7 @@ def test_visibility_means_touched_above_half_transmittance() -> None:
             torch.eye(4).double()[None], K, 32, 24)
     for backend in ("numba", "reference"):
         out = rasterize(*args, backend=backend)
+        assert out.visibility is not None
         assert out.visibility.tolist() == [[True, False]], backend
         assert (out.depth[0, 12, 16] > 0.9 * 2.0)
 
@@ -187,11 +191,11 @@ def test_bad_inputs_are_programming_errors() -> None:
     with pytest.raises(ValueError, match=r"rasterize: Ks has shape \(1, 3, 3\), need \[2,3,3\]"):
         rasterize(**dict(scene, Ks=scene["Ks"][:1]))
     with pytest.raises(ValueError, match="unknown backend 'magic'"):
-        rasterize(**scene, backend="magic")
+        rasterize(**scene, backend="magic")  # type: ignore[arg-type]  # the runtime check
     with pytest.raises(ValueError, match="must share one float32/float64 dtype"):
         rasterize(**dict(scene, colors=scene["colors"].float()))
     for bad in (lambda: rasterize(**dict(scene, quats=scene["quats"][:, :3])),
-                lambda: rasterize(**scene, backend="magic")):
+                lambda: rasterize(**scene, backend="magic")):  # type: ignore[arg-type]
         with pytest.raises(Exception) as info:
             bad()
         assert not isinstance(info.value, ConfigError)

@@ -14,14 +14,19 @@ import pytest
 
 from egs_bench.datasets.sequence import Sequence
 from egs_bench.errors import ConfigError, Interrupted
+from egs_bench.render import GaussianMap
 from egs_bench.runs.folder import RunFolder
 from egs_bench.slam import methods
 from egs_bench.slam.components import SlamComponents
+from egs_bench.slam.config import SlamConfig
+from egs_bench.slam.context import SlamContext
+from egs_bench.slam.crf import CameraResponse
 from egs_bench.slam.keyframes import KeyframeCandidate, MonoGSKeyframes
-from egs_bench.slam.mapper import Mapper
+from egs_bench.slam.mapper import Mapper, MappingRound
 from egs_bench.slam.runner import RunSettings, run_slam
 from egs_bench.slam.scheduling import iterations_per_frame
 from egs_bench.slam.system import SlamSystem
+from egs_bench.slam.tracker import TrackRequest, TrackResult
 
 FAST = dict(resolution_scale=1.0, init_iters=4, tracking_iters=3, mapping_iters=6,
             views_per_iter=2, kf_interval=2, pcd_downsample_init=2, pcd_downsample=4)
@@ -30,7 +35,7 @@ FAST = dict(resolution_scale=1.0, init_iters=4, tracking_iters=3, mapping_iters=
 class EverySecondFrame(MonoGSKeyframes):
     """Keyframes at frames 2, 4, ... whatever the overlap (so the schedule is known)."""
 
-    def __init__(self, ctx) -> None:
+    def __init__(self, ctx: SlamContext) -> None:
         super().__init__(ctx.cfg.keyframes, ctx.cfg.budget.window_size)
 
     def is_keyframe(self, candidate: KeyframeCandidate) -> bool:
@@ -48,7 +53,7 @@ def six_frames(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return make_plane_sequence(tmp_path_factory.mktemp("six") / "plane", frames=6)
 
 
-def _config(mode: str, **changes: Any):
+def _config(mode: str, **changes: Any) -> SlamConfig:
     return methods.BUILTIN["egs"].config("cpu").replace(
         **{**FAST, "mapping_mode": mode, **changes}).validate()
 
@@ -60,10 +65,12 @@ def test_slice_defaults_to_the_round_over_the_keyframe_interval() -> None:
     assert iterations_per_frame(30, 4, 5) == 5
 
 
-def _mapping_iterations_after_each_frame(seq: Sequence, cfg) -> list[int]:
+def _mapping_iterations_after_each_frame(seq: Sequence, cfg: SlamConfig) -> list[int]:
     system = SlamSystem(seq, cfg, seed=0, components=PARTS)
     seen: list[int] = []
-    system.run(len(seq), on_frame=lambda _r: seen.append(system.mapper.iteration))
+    mapper = system.mapper
+    assert isinstance(mapper, Mapper)
+    system.run(len(seq), on_frame=lambda _r: seen.append(mapper.iteration))
     return seen
 
 
@@ -104,10 +111,11 @@ def test_tracking_reads_a_snapshot_not_the_live_map(six_frames: Path) -> None:
     from egs_bench.slam.tracker import GradientTracker
 
     seq = Sequence.open(six_frames)
-    seen = {}
+    seen: dict[int, tuple[bool, bool]] = {}
 
     class SnapshotCheck(GradientTracker):
-        def track(self, gmap, crf, request):
+        def track(self, gmap: GaussianMap, crf: CameraResponse, request: TrackRequest
+                  ) -> TrackResult:
             before = gmap.means.detach().clone()
             result = super().track(gmap, crf, request)
             seen[request.obs.index] = (gmap is system.gmap,
@@ -139,7 +147,7 @@ def test_a_mapper_without_rounds_is_refused_before_the_run(tiny_sequence: Path) 
         with pytest.raises(ConfigError, match=r"the mapper Plain is not a MapOptimiser: it "
                                               r"has no begin_round\(\)"):
             SlamSystem(Sequence.open(tiny_sequence), _config(mode),
-                       components=SlamComponents(mapper=Plain))
+                       components=SlamComponents(mapper=Plain))  # type: ignore[arg-type]
 
 
 def test_a_signal_during_a_mapping_slice_stops_the_run_marked_interrupted(
@@ -149,7 +157,7 @@ def test_a_signal_during_a_mapping_slice_stops_the_run_marked_interrupted(
     from egs_bench.interrupts import signals_interrupt
 
     class SignalInSlice(Mapper):
-        def begin_round(self, *args: Any, **kwargs: Any):
+        def begin_round(self, *args: Any, **kwargs: Any) -> MappingRound:
             round_ = super().begin_round(*args, **kwargs)
             if round_.initial:  # map initialisation runs before any frame is tracked
                 return round_
@@ -159,7 +167,7 @@ def test_a_signal_during_a_mapping_slice_stops_the_run_marked_interrupted(
                 os.kill(os.getpid(), signal.SIGTERM)
                 advance(n)
 
-            round_.advance = advance_then_signal
+            round_.advance = advance_then_signal  # type: ignore[method-assign]
             return round_
 
     seq = Sequence.open(six_frames)
@@ -169,5 +177,5 @@ def test_a_signal_during_a_mapping_slice_stops_the_run_marked_interrupted(
                  settings=RunSettings(progress=False),
                  components=SlamComponents(mapper=SignalInSlice, keyframes=EverySecondFrame))
     status = RunFolder.open(out).read_status()
-    assert status.state == "interrupted" and "SIGTERM" in status.reason
+    assert status.state == "interrupted" and "SIGTERM" in (status.reason or "")
     assert len(RunFolder.open(out).read_trajectory().poses) >= 3

@@ -18,6 +18,8 @@ import egs_bench.cli.render_cmds  # noqa: F401  (registers the commands)
 from egs_bench.cli.app import app
 from egs_bench.errors import ConfigError, InputError
 from egs_bench.eval.image_metrics import psnr
+from egs_bench.geometry import Intrinsics
+from egs_bench.render.gaussian_map import GaussianMap
 from egs_bench.render.ply import SH_C0, read_ply, save_ply
 from egs_bench.runs.folder import RunFolder
 from egs_bench.slam.appearance import read_appearance
@@ -61,6 +63,7 @@ def test_appearance_file_describes_the_run(egs_run: RunFolder) -> None:
     from egs_bench.datasets.sequence import Sequence
 
     app_ = read_appearance(egs_run.path / "appearance.json")
+    assert egs_run.sequence_path is not None
     seq = Sequence.open(egs_run.sequence_path)
     assert app_.camera == seq.intrinsics and app_.near_plane == 0.2
     np.testing.assert_array_equal(app_.frames, np.arange(FRAMES))
@@ -103,6 +106,7 @@ def test_render_map_exposure_option(egs_run: RunFolder) -> None:
     src = open_map(egs_run.path)
     plain, _ = render_map_view(src, frame=3)
     exposed, what = render_map_view(src, frame=3, exposure=True)
+    assert src.appearance is not None
     a, b = src.appearance.exposure_of(3)
     assert f"a={a:.4f}" in what and (a, b) != (0.0, 0.0)
     inside = plain < 250  # not clamped at 1 before the compensation
@@ -176,6 +180,7 @@ def test_display_export_loads_in_inria_and_gsplat(egs_run: RunFolder, tmp_path: 
 
     src = open_map(egs_run.path)
     gmap, app_ = src.gmap, src.appearance
+    assert app_ is not None
     inria = _inria_load_ply(out)
     gs = _gsplat_load_ply(out)
     assert gs["shN"].shape == (len(gmap), 15, 3) and gs["sh0"].shape == (len(gmap), 1, 3)
@@ -259,7 +264,7 @@ def test_crf_round_trip_all_kinds() -> None:
     x = torch.linspace(-0.5, 3.0, 301)
     for kind in ("identity", "srgb", "learnable"):
         crf = make_crf(kind, 8, init="srgb")
-        if kind == "learnable":
+        if isinstance(crf, LeakyPiecewiseLinearCRF):
             with torch.no_grad():
                 crf.gap_logits.add_(torch.linspace(-0.3, 0.4, 7))
         back = crf_from_dict(json.loads(json.dumps(crf_to_dict(crf))))
@@ -309,12 +314,9 @@ def test_bad_inputs_one_line_each(egs_run: RunFolder, tmp_path: Path,
     assert not Path(png).exists()
 
 
-def _hdr_scene(n: int = 400, seed: int = 0):
+def _hdr_scene(n: int = 400, seed: int = 0) -> tuple[GaussianMap, Intrinsics]:
     """Gaussians in front of a 64x48 camera at the origin, overlapping, with linear colours
     from -0.05 to 3 (HDR lights brighter than white, a few slightly negative)."""
-    from egs_bench.geometry import Intrinsics
-    from egs_bench.render.gaussian_map import GaussianMap
-
     rng = np.random.default_rng(seed)
     z = rng.uniform(1.0, 3.0, n)
     xy = rng.uniform(-0.5, 0.5, (n, 2)) * z[:, None]
@@ -328,7 +330,7 @@ def _hdr_scene(n: int = 400, seed: int = 0):
     return gmap, Intrinsics(60.0, 60.0, 32.0, 24.0, 64, 48)
 
 
-def _inria_render(path: Path, camera, pose: np.ndarray) -> np.ndarray:
+def _inria_render(path: Path, camera: Intrinsics, pose: np.ndarray) -> np.ndarray:
     """The export rendered as the INRIA 3DGS code does (its loader, degree-0 SH + 0.5 clamped
     at 0 per Gaussian, sigmoid / exp activations, black background, the pixel clamped)."""
     from egs_bench.render.rasterize import rasterize
@@ -373,6 +375,7 @@ def test_export_reproduces_a_straight_crf(tmp_path: Path, kind: str) -> None:
             hdr = gmap.render(torch.tensor(np.linalg.inv(pose)[None], dtype=torch.float32),
                               torch.tensor(camera.K[None], dtype=torch.float32), 64, 48,
                               near_plane=0.2).rgb[0]
+        assert src.appearance is not None
         run_render = ldr8(src.appearance.crf, hdr)
         assert (hdr > 1).any() and (run_render == 255).any()  # saturated pixels exist
         # measured 69.9-70.1 dB (the INRIA clamp at 0 of the slightly negative colours)
@@ -381,7 +384,7 @@ def test_export_reproduces_a_straight_crf(tmp_path: Path, kind: str) -> None:
 
 def test_blend_response_continues_the_curve_linearly() -> None:
     x = torch.linspace(-1.0, 4.0, 501, dtype=torch.float64)
-    crf = make_crf("learnable", 8, init="srgb")
+    crf = LeakyPiecewiseLinearCRF(8, init="srgb")
     with torch.no_grad():
         crf.gap_logits.add_(torch.linspace(-0.3, 0.4, 7))
     y = blend_response(crf, x)
@@ -440,13 +443,16 @@ def test_render_map_intrinsics_options(egs_run: RunFolder, tmp_path: Path,
     assert big.shape == (2 * cam.height, 2 * cam.width, 3)
     # the helper's rules
     assert view_camera(cam) is cam
-    assert view_camera(None, width=100, height=50, fx=80.0).K.tolist() == [
+    made = view_camera(None, width=100, height=50, fx=80.0)
+    assert made is not None and made.K.tolist() == [
         [80.0, 0, 50.0], [0, 80.0, 25.0], [0, 0, 1]]
-    for kwargs, message in (({"fov_deg": 60.0, "fx": 50.0}, "give --fov or --fx/--fy"),
+    bad: tuple[tuple[dict[str, Any], str], ...] = (
+                            ({"fov_deg": 60.0, "fx": 50.0}, "give --fov or --fx/--fy"),
                             ({"fy": 50.0}, "--fy needs --fx"),
                             ({"fx": -1.0}, "--fx must be positive"),
                             ({"fx": float("nan")}, "--fx must be a finite number"),
-                            ({"cx": 1e4}, "outside the")):
+                            ({"cx": 1e4}, "outside the"))
+    for kwargs, message in bad:
         with pytest.raises(ConfigError, match=message):
             view_camera(cam, **kwargs)
     from egs_bench.cli import main

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import signal
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -17,12 +18,15 @@ import egs_bench.cli.slam_cmds  # noqa: F401  (registers the commands)
 from egs_bench.cli.app import app
 from egs_bench.datasets.sequence import Sequence
 from egs_bench.errors import ConfigError, InputError, Interrupted
+from egs_bench.render import GaussianMap
 from egs_bench.render.ply import load_ply
 from egs_bench.runs import registry
 from egs_bench.runs.folder import RunFolder
 from egs_bench.slam import methods
 from egs_bench.slam.components import SlamComponents
 from egs_bench.slam.config import cpu_preset
+from egs_bench.slam.context import SlamContext
+from egs_bench.slam.crf import CameraResponse
 from egs_bench.slam.runner import RunSettings, run_slam
 from egs_bench.slam.tracker import GradientTracker, TrackRequest, TrackResult
 from tests.helpers.cli import assert_cli_error, run_cli
@@ -35,14 +39,18 @@ FAST = dict(resolution_scale=1.0, init_iters=20, tracking_iters=20, mapping_iter
 QUIET = RunSettings(preset="cpu", progress=False)
 
 
-def tracker_wrapped(around) -> SlamComponents:
+Around = Callable[[GradientTracker, GaussianMap, CameraResponse, TrackRequest], TrackResult]
+
+
+def tracker_wrapped(around: Around) -> SlamComponents:
     """Components whose tracker is ``around(inner, gmap, crf, request)`` around the built-in
     one (the seam a researcher's tracker plugs into)."""
     class Wrapped:
-        def __init__(self, ctx) -> None:
+        def __init__(self, ctx: SlamContext) -> None:
             self.inner = GradientTracker(ctx)
 
-        def track(self, gmap, crf, request: TrackRequest) -> TrackResult:
+        def track(self, gmap: GaussianMap, crf: CameraResponse, request: TrackRequest
+                  ) -> TrackResult:
             return around(self.inner, gmap, crf, request)
 
     return SlamComponents(tracker=Wrapped)
@@ -71,7 +79,8 @@ def test_frame_without_velocity_gets_the_no_prior_iteration_budget(
         **{**FAST, "tracking_iters": 2, "init_iters": 2, "tracking_iters_no_prior": no_prior})
     used: list[tuple[int, int]] = []
 
-    def counting(inner, gmap, crf, request):
+    def counting(inner: GradientTracker, gmap: GaussianMap, crf: CameraResponse,
+                 request: TrackRequest) -> TrackResult:
         res = inner.track(gmap, crf, request)
         used.append((request.obs.index, res.iterations))
         return res
@@ -143,7 +152,8 @@ def test_divergence_falls_back_to_retracking_then_previous_pose(tiny_sequence: P
         **{**FAST, "tracking_iters": 2, "init_iters": 2})
     calls: list[tuple[int, float]] = []
 
-    def jumpy(inner, gmap, crf, request):
+    def jumpy(inner: GradientTracker, gmap: GaussianMap, crf: CameraResponse,
+              request: TrackRequest) -> TrackResult:
         index, lr_scale = request.obs.index, request.lr_scale
         calls.append((index, lr_scale))
         res = inner.track(gmap, crf, request)
@@ -200,14 +210,14 @@ def test_failure_marks_run_failed_or_interrupted(tiny_sequence: Path, tmp_path: 
     seq = Sequence.open(tiny_sequence)
     cfg = methods.BUILTIN["monogs"].config("cpu").replace(**FAST)
 
-    def boom(*_a: Any) -> None:
+    def boom(*_a: Any) -> TrackResult:
         raise exc
 
     with pytest.raises(type(exc)):
         run_slam(seq, tmp_path / "run", method_name="monogs", config=cfg, settings=QUIET,
                  components=tracker_wrapped(boom))
     status = RunFolder.open(tmp_path / "run").read_status()
-    assert status.state == state and words in status.reason
+    assert status.state == state and words in (status.reason or "")
 
 
 def test_interrupted_run_keeps_the_trajectory_of_the_processed_frames(
@@ -217,7 +227,8 @@ def test_interrupted_run_keeps_the_trajectory_of_the_processed_frames(
     seq = Sequence.open(tiny_sequence)
     cfg = methods.BUILTIN["monogs"].config("cpu").replace(**FAST)
 
-    def stop_at_2(inner, gmap, crf, request):
+    def stop_at_2(inner: GradientTracker, gmap: GaussianMap, crf: CameraResponse,
+                  request: TrackRequest) -> TrackResult:
         if request.obs.index == 2:
             raise KeyboardInterrupt
         return inner.track(gmap, crf, request)
@@ -322,6 +333,7 @@ def test_black_frame_missing_depth_and_no_events_run_through(tiny_sequence: Path
     cv2.imwrite(str(root / "rgb" / "000002.png"), np.zeros_like(black))
     depth_path = str(root / "depth" / "000001.png")
     depth = cv2.imread(depth_path, cv2.IMREAD_UNCHANGED)
+    assert depth is not None
     depth[:, : depth.shape[1] // 2] = 0
     cv2.imwrite(depth_path, depth)
     if not events:
