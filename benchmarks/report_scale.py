@@ -2,7 +2,7 @@
 more per run with a 50k-Gaussian map, a run page's 3D view interactive within 3 s).
 
 Builds a runs root of ``--methods`` x ``--sequences`` x ``--seeds`` imported runs
-(:func:`egs_bench.baselines.import_runs.import_tum_run`, what ``egs-bench import-run`` does):
+(:func:`egs_bench.interop.importing.import_tum_run`, what ``egs-bench import-run`` does):
 each estimate is the ground truth plus seeded position noise, each render the sharp frame plus
 seeded noise, so the runs are evaluated like real ones (ATE, PSNR, SSIM, LPIPS when its weights
 are available); each run gets a ``map.ply`` of ``--gaussians`` seeded random Gaussians around
@@ -145,12 +145,12 @@ def make_runs(work: Path, methods: int, sequences: int, seeds: int, frames: int,
     """``methods x sequences x seeds`` imported, evaluated runs under ``work/runs`` on small
     synthetic sequences (generated into ``work/data``), each with a ``gaussians``-Gaussian map
     (none for 0)."""
-    from egs_bench.baselines.import_runs import import_tum_run
     from egs_bench.datasets.sequence import Sequence
     from egs_bench.datasets.synthetic import make_synthetic
     from egs_bench.eval.evaluate import evaluate_run
     from egs_bench.geometry import write_tum
     from egs_bench.images import write_ldr_image
+    from egs_bench.interop.importing import import_tum_run
 
     runs = work / "runs"
     scenes = ["office", "livingroom", "studio", "corridor"]

@@ -23,8 +23,9 @@ DeltaUnit = Literal["f", "frames", "m", "meters", "d", "deg", "degrees", "r", "r
 BoardFormat = Literal["md", "latex", "csv", "csv-summary"]  # eval.leaderboard.FORMATS
 BoardLayout = Literal["sequence", "method"]  # eval.leaderboard.LAYOUTS
 TableWidth = Literal["auto", "natural", "column", "page"]  # eval.tables.WIDTHS
-ImportFormat = Literal["tum", "orbslam2", "photoslam", "monogs", "rampvo"]  # IMPORT_FORMATS
-QuaternionOrder = Literal["rampvo", "wxyz"]  # baselines.import_runs.QUATERNION_ORDERS
+# interop.registry.IMPORT_FORMATS
+ImportFormat = Literal["tum", "orbslam2", "photoslam", "monogs", "rampvo"]
+QuaternionOrder = Literal["rampvo", "wxyz"]  # interop.rampvo.QUATERNION_ORDERS
 ExportFormat = Literal["tum-rgbd", "replica", "eds"]  # interop.export.FORMATS
 Retime = Literal["auto", "never", "always"]
 MapColors = Literal["auto", "linear", "display"]

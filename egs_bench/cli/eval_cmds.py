@@ -392,8 +392,8 @@ def import_run_cmd(
     overwrite: bool = typer.Option(False, "--overwrite", help="Replace an existing run folder."),
 ) -> None:
     """Import an external system's output (trajectory, renders) as a finished run folder."""
-    from egs_bench.baselines.import_runs import import_external_run, import_tum_run
     from egs_bench.errors import ConfigError
+    from egs_bench.interop.importing import import_external_run, import_tum_run
 
     out_dir = output_path(out, old_out, "import-run")
     if fmt == "tum":

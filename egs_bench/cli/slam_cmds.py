@@ -43,7 +43,8 @@ def run_cmd(
                                         "written by egs-bench; other files in it are kept)."),
     options: list[str] = typer.Option([], "--set",
                                       help="Override one configuration field, KEY=VALUE "
-                                           "(repeatable; built-in methods only), e.g. "
+                                           "(repeatable; methods with a SLAM configuration, "
+                                           "their components' own fields included), e.g. "
                                            "--set lambda_d=0.05."),
     config: Path | None = typer.Option(None, "--config",
                                        help="Re-run a stored configuration, RUN/config.yaml: "

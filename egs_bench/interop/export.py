@@ -37,7 +37,8 @@ consuming loader's parsing logic):
 * Depth is written at 5000 units per metre (TUM); depths beyond 13.1 m become 0 (invalid) and
   are counted in ``egs_export.yaml``. Replica exports use 6553.5 (its own scale).
 * Intrinsics in the camera files use the OpenCV pixel convention (``cx - 0.5``, see
-  :mod:`egs_bench.interop.camera_files`).
+  :mod:`egs_bench.interop.camera_files`). Each layout gets the camera file of every system
+  that reads it (:func:`egs_bench.interop.registry.systems_reading`).
 * RampVO's ``Events`` class asserts ``t`` int64 and ``p`` int8 in {0, 1}; its EDS path reads
   ``timestamps.txt`` in microseconds and ``pose_left.txt`` in seconds: the export's
   ``events.h5`` holds absolute microseconds in those dtypes plus ``events/height`` and
@@ -67,15 +68,9 @@ from egs_bench.errors import ConfigError, InputError, OutputError
 from egs_bench.fileio import atomic_dir, to_plain
 from egs_bench.geometry import write_tum
 from egs_bench.images import image_header, write_depth_png, write_ldr_image
-from egs_bench.interop.camera_files import (
-    checkout_path,
-    monogs_config,
-    nice_slam_config,
-    opencv_camera,
-    orbslam2_settings,
-    orbslam3_settings,
-    rampvo_k_yaml,
-)
+from egs_bench.interop.camera_files import checkout_path, opencv_camera
+from egs_bench.interop.registry import systems_reading
+from egs_bench.interop.systems import CameraFileRequest
 from egs_bench.outputs import check_never_replaced
 
 if TYPE_CHECKING:
@@ -215,6 +210,17 @@ def _manifest(tmp: Path, seq: Sequence, fmt: str, n: int, retimed: bool, files: 
     (tmp / MANIFEST).write_text(yaml.safe_dump(to_plain(data), sort_keys=False))
 
 
+def _write_camera_files(tmp: Path, request: CameraFileRequest) -> dict[str, str]:
+    """Write the camera file of every system that reads ``request.layout`` into ``tmp``;
+    returns their names by system key, in registry order."""
+    files = {}
+    for system in systems_reading(request.layout):
+        camera_file = system.camera_files[request.layout]
+        (tmp / camera_file.name).write_text(camera_file.write(request))
+        files[system.key] = camera_file.name
+    return files
+
+
 def _export_tum(seq: Sequence, tmp: Path, n: int, t_export: np.ndarray, in_checkout: str,
                 progress: bool) -> _Written:
     from egs_bench.progress import tracked
@@ -239,18 +245,10 @@ def _export_tum(seq: Sequence, tmp: Path, n: int, t_export: np.ndarray, in_check
         f"{t} {r} {t} {d}\n" for t, r, d in zip(stamps, rgb_names, depth_names, strict=True)))
     write_tum(tmp / "groundtruth.txt", t_export, seq.poses[:n])
     _write_index_map(tmp / INDEX_MAP, t_export, seq.timestamps_s[:n], rgb_names, depth_names)
-    cam = opencv_camera(seq.intrinsics)
     fps = 1.0 / float(np.median(np.diff(t_export))) if n > 1 else 30.0
-    files = {
-        "monogs": "monogs_rgbd.yaml", "orbslam2": "orbslam2_rgbd.yaml",
-        "photoslam": "photoslam_rgbd.yaml", "associations": "associations.txt",
-    }
-    (tmp / files["monogs"]).write_text(monogs_config(
-        cam, in_checkout, dataset_type="tum", depth_scale=TUM_DEPTH_SCALE, name=seq.name))
-    (tmp / files["orbslam2"]).write_text(orbslam2_settings(
-        cam, fps=fps, depth_scale=TUM_DEPTH_SCALE, name=seq.name))
-    (tmp / files["photoslam"]).write_text(orbslam3_settings(
-        cam, fps=fps, depth_scale=TUM_DEPTH_SCALE, name=seq.name))
+    files = _write_camera_files(tmp, CameraFileRequest(
+        opencv_camera(seq.intrinsics), seq, n, "tum-rgbd", in_checkout, TUM_DEPTH_SCALE, fps))
+    files["associations"] = "associations.txt"
     notes = []
     if lost:
         notes.append(f"{lost} depth pixels beyond {65535 / TUM_DEPTH_SCALE:.1f} m became 0 "
@@ -282,24 +280,6 @@ class _LazyFrames(collections.abc.Sequence[np.ndarray]):
         return self._read(i)
 
 
-def _scene_bound(seq: Sequence, n: int, margin: float = 0.2) -> list[list[float]]:
-    """Axis-aligned world box of the camera centres and the valid depth points of (up to 20)
-    frames, plus a margin (NICE-SLAM's ``mapping.bound``)."""
-    centres = seq.poses[:n, :3, 3]
-    lo, hi = centres.min(0), centres.max(0)
-    intr = seq.intrinsics
-    for i in np.unique(np.linspace(0, n - 1, min(n, 20)).astype(int)):
-        depth = seq.depth(int(i))[::4, ::4]
-        pts = intr.backproject(seq.depth(int(i)))[::4, ::4][depth > 0]
-        if len(pts) == 0:
-            continue
-        pose = seq.poses[int(i)]
-        world = pts @ pose[:3, :3].T + pose[:3, 3]
-        lo, hi = np.minimum(lo, world.min(0)), np.maximum(hi, world.max(0))
-    return [[round(float(a) - margin, 2), round(float(b) + margin, 2)]
-            for a, b in zip(lo, hi, strict=True)]
-
-
 def _export_replica(seq: Sequence, tmp: Path, n: int, t_export: np.ndarray, in_checkout: str,
                     jpeg_quality: int) -> _Written:
     from egs_bench.datasets.replica import REPLICA_DEPTH_SCALE, export_replica_layout
@@ -314,22 +294,17 @@ def _export_replica(seq: Sequence, tmp: Path, n: int, t_export: np.ndarray, in_c
     _write_index_map(tmp / INDEX_MAP, t_export, seq.timestamps_s[:n],
                      [f"results/frame{i:06d}.jpg" for i in range(n)],
                      [f"results/depth{i:06d}.png" for i in range(n)])
-    cam = opencv_camera(seq.intrinsics)
-    files = {"monogs": "monogs_replica.yaml", "nice_slam": "nice_slam.yaml",
-             "camera": "cam_params.json"}
-    (tmp / files["monogs"]).write_text(monogs_config(
-        cam, in_checkout, dataset_type="replica", depth_scale=REPLICA_DEPTH_SCALE,
-        name=seq.name))
-    (tmp / files["nice_slam"]).write_text(nice_slam_config(
-        cam, in_checkout, depth_scale=REPLICA_DEPTH_SCALE, bound=_scene_bound(seq, n),
-        name=seq.name))
+    files = _write_camera_files(tmp, CameraFileRequest(
+        opencv_camera(seq.intrinsics), seq, n, "replica", in_checkout, REPLICA_DEPTH_SCALE))
+    files["camera"] = "cam_params.json"
     notes = [f"colour re-encoded as JPEG (quality {jpeg_quality}, 4:4:4 chroma): Replica "
              "loaders glob frame*.jpg only", "the layout has no time stamps: frames are in order, "
              "index_map.csv gives their times"]
     return files, {"depth_scale": REPLICA_DEPTH_SCALE, "jpeg_quality": jpeg_quality}, notes
 
 
-def _export_eds(seq: Sequence, tmp: Path, n: int, t_export: np.ndarray) -> _Written:
+def _export_eds(seq: Sequence, tmp: Path, n: int, t_export: np.ndarray, in_checkout: str
+                ) -> _Written:
     import h5py
 
     (tmp / "image_left").mkdir()
@@ -342,8 +317,8 @@ def _export_eds(seq: Sequence, tmp: Path, n: int, t_export: np.ndarray) -> _Writ
     (tmp / "timestamps.txt").write_text("".join(f"{t}\n" for t in t_us))
     write_tum(tmp / "pose_left.txt", t_export, seq.poses[:n])
     _write_index_map(tmp / INDEX_MAP, t_export, seq.timestamps_s[:n], names, [""] * n)
-    cam = opencv_camera(seq.intrinsics)
-    (tmp / "K.yaml").write_text(rampvo_k_yaml(cam, name=seq.name))
+    files = _write_camera_files(tmp, CameraFileRequest(
+        opencv_camera(seq.intrinsics), seq, n, "eds", in_checkout))
     stream = seq.events  # written with absolute microsecond stamps, like timestamps.txt
     count = 0
     with h5py.File(tmp / "events.h5", "w") as f:
@@ -370,8 +345,7 @@ def _export_eds(seq: Sequence, tmp: Path, n: int, t_export: np.ndarray) -> _Writ
     per_frame = count / max(n, 1)
     notes = [f"{count} events ({per_frame:.0f} per frame): set RampVO's num_events_selected "
              "near that (its EDS config uses 250000)"]
-    return {"rampvo": "K.yaml"}, {"events": count, "events_per_frame": round(per_frame, 1)}, \
-        notes
+    return files, {"events": count, "events_per_frame": round(per_frame, 1)}, notes
 
 
 def export_sequence(sequence: str | Path | Sequence, out: str | Path, *, fmt: str,
@@ -421,7 +395,7 @@ def export_sequence(sequence: str | Path | Sequence, out: str | Path, *, fmt: st
         elif fmt == "replica":
             files, extra, more = _export_replica(seq, tmp, n, t_export, in_checkout, jpeg_quality)
         else:
-            files, extra, more = _export_eds(seq, tmp, n, t_export)
+            files, extra, more = _export_eds(seq, tmp, n, t_export, in_checkout)
         notes += more
         _manifest(tmp, seq, fmt, n, retimed, files, extra, notes)
     return ExportResult(out, fmt, n, retimed, files, notes)

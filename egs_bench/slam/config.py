@@ -12,6 +12,10 @@ Every field is typed (``Literal`` choices, ``int``/``float``/``bool``, optional 
 checked by :meth:`SlamConfig.validate`; the resolved configuration is stored, nested by group,
 in the run folder's ``config.yaml``. Overrides (``--set``, ``replace``) name a field by its
 path (``loss.lambda_d``) or by its unique field name (``lambda_d``).
+
+A component with settings of its own (``egs_bench.slam.components``) declares a subclass of
+the group it reads, with ``RANGES`` for its fields; :meth:`SlamConfig.with_groups` puts that
+class in the group, and the same overrides, checks and reference page then cover its fields.
 """
 
 from __future__ import annotations
@@ -236,8 +240,9 @@ class SlamConfig:
     mapping: MappingConfig = field(default_factory=MappingConfig)
     budget: BudgetConfig = field(default_factory=BudgetConfig)
     runtime: RuntimeConfig = field(default_factory=RuntimeConfig)
-    # Free-form values for user components (``extra.NAME``), e.g. the weight of a loss term
-    # that a researcher adds (docs/guide/extending.md).
+    # Free-form values for user components (``extra.NAME``), stored but not checked; settings
+    # that need their type and range checked go into the component's own config class
+    # (:meth:`with_groups`, docs/guide/extending.md).
     extra: dict[str, Any] = field(default_factory=dict)
 
     # ------------------------------------------------------------------ groups

@@ -226,7 +226,6 @@ def test_topic_options_have_help(capsys: pytest.CaptureFixture[str]) -> None:
 def test_cli_choices_match_the_library() -> None:
     from typing import get_args
 
-    from egs_bench.baselines.import_runs import IMPORT_FORMATS, QUATERNION_ORDERS
     from egs_bench.cli import choices
     from egs_bench.datasets.eventreplica.interpolate import INTERPOLATORS
     from egs_bench.datasets.rgbd_layouts import LAYOUTS as RGBD_LAYOUTS
@@ -238,6 +237,8 @@ def test_cli_choices_match_the_library() -> None:
     from egs_bench.eval.tables import WIDTHS
     from egs_bench.experiments.sweep import BACKENDS
     from egs_bench.interop.export import FORMATS as EXPORT_FORMATS
+    from egs_bench.interop.rampvo import QUATERNION_ORDERS
+    from egs_bench.interop.registry import IMPORT_FORMATS
     from egs_bench.recordings.enslam import FRAME_SOURCES
     from egs_bench.recordings.folders import UNIT_TO_US
     from egs_bench.slam.config import PRESETS
@@ -281,7 +282,7 @@ def test_info_does_not_invent_event_thresholds(tiny_sequence: Path, tmp_path: Pa
 
 def test_orbslam_frame_rate_is_rounded() -> None:
     from egs_bench.geometry import Intrinsics
-    from egs_bench.interop.camera_files import orbslam2_settings
+    from egs_bench.interop.orbslam2 import orbslam2_settings
 
     text = orbslam2_settings(Intrinsics(100.0, 100.0, 32.0, 24.0, 64, 48),
                              fps=1e6 / 33333, depth_scale=5000.0, name="s")

@@ -97,7 +97,7 @@ def test_cli_bad_inputs_one_line_each(tmp_path: Path, capsys: pytest.CaptureFixt
 
 
 def test_plot_trajectory_only_run(tmp_path: Path, shared_data: Path) -> None:
-    from egs_bench.baselines.import_runs import import_tum_run
+    from egs_bench.interop.importing import import_tum_run
 
     d = shared_data / "trajectories"
     run = import_tum_run(d / "freiburg1_xyz-rgbdslam.txt", tmp_path / "r", method="RGBD-SLAM",

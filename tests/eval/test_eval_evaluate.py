@@ -139,7 +139,7 @@ def test_evaluate_bad_run_folders(tmp_path: Path, eval_sequence: Path) -> None:
 
 @needs_weights
 def test_evaluate_trajectory_only_run(tmp_path: Path, eval_sequence: Path) -> None:
-    from egs_bench.baselines.import_runs import import_tum_run
+    from egs_bench.interop.importing import import_tum_run
 
     run = make_run(tmp_path, eval_sequence)
     imported = import_tum_run(run.trajectory_path, tmp_path / "imp", method="ext",

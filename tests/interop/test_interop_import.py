@@ -15,12 +15,13 @@ import cv2
 import numpy as np
 import pytest
 
-from egs_bench.baselines.import_runs import import_external_run, monogs_kept_frames
 from egs_bench.datasets.sequence import Sequence
 from egs_bench.errors import ConfigError, InputError, OutputError, UnwritableOutputError
 from egs_bench.eval.evaluate import evaluate_run
 from egs_bench.geometry import invert_pose, pose_from_tq, pose_to_tq
 from egs_bench.interop.export import export_sequence
+from egs_bench.interop.importing import import_external_run
+from egs_bench.interop.monogs import monogs_kept_frames
 from tests.helpers.cli import assert_cli_error
 from tests.helpers.interop_consumers import monogs_tum_parser, retimed_copy
 
@@ -435,8 +436,8 @@ def test_tum_import_validates_as_eval_would(seq: Sequence, tmp_path: Path,
     """A missing or corrupt sequence folder, an estimate 100 s off the ground truth, renders
     of the wrong size or truncated: each is refused with one line naming the file, and no
     run folder is left (a retry needs no --overwrite)."""
-    from egs_bench.baselines.import_runs import import_tum_run
     from egs_bench.cli import main
+    from egs_bench.interop.importing import import_tum_run
 
     est = _tum_estimate(tmp_path / "est.txt", seq)
     off = _tum_estimate(tmp_path / "off.txt", seq, offset_s=100.0)

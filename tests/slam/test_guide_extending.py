@@ -37,6 +37,7 @@ def guide_namespace(guide_folder: Path) -> Iterator[dict]:
     """The guide's code blocks run once, in order, in ``guide_folder``, as the module
     ``guide`` (what a reader's own module would be: its classes have import paths); the
     methods they register are removed afterwards."""
+    from egs_bench.interop import registry as interop_registry
     from egs_bench.runs import registry
 
     module = types.ModuleType("guide")
@@ -52,10 +53,11 @@ def guide_namespace(guide_folder: Path) -> Iterator[dict]:
         finally:
             registry._USER.pop("egs-depth-tv", None)
             registry._USER.pop("short-steps", None)
+            interop_registry._REGISTERED.pop("toyslam", None)
 
 
 def test_the_guide_has_its_examples() -> None:
-    assert len(guide_code()) == 8
+    assert len(guide_code()) == 9
 
 
 def test_the_guides_keyframe_setting_is_an_option_with_its_range(

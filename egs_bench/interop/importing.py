@@ -1,35 +1,7 @@
-"""Import the outputs of external systems (ORB-SLAM2, MonoGS, Photo-SLAM, RampVO, any TUM
-trajectory) as run folders that ``egs-bench eval`` and ``egs-bench leaderboard`` treat like any
-other run.
-
-What each system writes (read in their sources; the tests build files shaped exactly so):
-
-``tum``        a TUM trajectory ``t tx ty tz qx qy qz qw`` (camera-to-world).
-``orbslam2``   ``CameraTrajectory.txt`` (every tracked frame; lost frames skipped) and
-               ``KeyFrameTrajectory.txt``, both TUM with ``%.6f`` stamps and no header, written
-               into the working directory (``System::SaveTrajectoryTUM``); give the folder or
-               one file.
-``photoslam``  the output folder: ``CameraTrajectory_TUM.txt``, ``KeyFrameTrajectory_TUM.txt``
-               (ORB-SLAM3's TUM writers) and keyframe renders
-               ``<iter>_shutdown/image/<iter>_<keyframe id>.jpg`` with
-               ``<iter>_shutdown/ply/cameras.json`` (``id`` -> ``img_name``, the colour file the
-               keyframe came from) (``GaussianMapper::renderAndRecordAllKeyframes``).
-``monogs``     the result folder (or ``plot/trj_final.json``): ``{"trj_id": [frame uid...],
-               "trj_est": [4x4 camera-to-world...], "trj_gt": [...]}`` for **keyframes only**
-               (``utils/eval_utils.py eval_ate``); uids index the frames MonoGS kept after its
-               association and 1/32 s subsampling. MonoGS saves no renders; ``render_ply``
-               renders its ``point_cloud/final/point_cloud.ply`` at the imported poses. Its own
-               numbers (``plot/stats_final.json``, ``psnr/*/final_result.json``) are kept in
-               ``reported_metrics.json`` (not used for scoring).
-``rampvo``     ``stamped_traj_estimate.txt`` (``np.savetxt`` of ``t x y z`` and four
-               quaternion columns). RampVO@9353aaa labels them w-first (evo's
-               ``orientations_quat_wxyz``) but fills them with lietorch's ``x y z w``
-               permuted by ``(1, 2, 3, 0)``, i.e. the columns hold ``qy qz qw qx``;
-               ``quaternion="rampvo"`` (default) undoes that, ``"wxyz"`` reads a true w-first
-               file (e.g. its ``stamped_groundtruth.txt``, or a fixed fork). Its time column is
-               the image stamp in seconds times 1e-9 on EDS (``save_results`` multiplies by
-               ``10 ** -9``); the unit is detected against the export's stamps. Monocular VO:
-               marked scale-free, so evaluation aligns with Sim(3), as RampVO's own ATE does.
+"""Import the outputs of external systems as run folders that ``egs-bench eval`` and
+``egs-bench leaderboard`` treat like any other run: a TUM trajectory (:func:`import_tum_run`), or
+a system's own output read by the system's reader (:func:`import_external_run`; the systems and
+what each writes: :mod:`egs_bench.interop.registry`).
 
 Mapping to the sequence: with the export folder (``egs-bench export``), the external time
 stamps / frame uids are mapped through its ``index_map.csv`` back to sequence frames and the
@@ -53,16 +25,19 @@ import contextlib
 import json
 import re
 from collections.abc import Iterator, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from egs_bench.errors import ConfigError, InputError
-from egs_bench.fileio import atomic_dir
-from egs_bench.geometry import Intrinsics, Trajectory, pose_from_tq, read_tum
+from egs_bench.errors import InputError
+from egs_bench.fileio import atomic_dir, write_text_atomic
+from egs_bench.geometry import Intrinsics, Trajectory, read_tum
 from egs_bench.images import read_ldr_image
+from egs_bench.interop.export import read_export_index
+from egs_bench.interop.registry import importable_system
+from egs_bench.interop.systems import ExternalEstimate, ExternalSystem, ImportOptions
 from egs_bench.outputs import prepare_output
 from egs_bench.runs.folder import RunFolder
 
@@ -70,13 +45,7 @@ if TYPE_CHECKING:
     from egs_bench.datasets.sequence import Sequence
 
 _RENDER = re.compile(r"^(\d+)\.png$")
-IMPORT_FORMATS = ("tum", "orbslam2", "photoslam", "monogs", "rampvo")
-# leaderboard names of the systems (a ``tum`` import names its method itself)
-METHOD_NAMES = {"orbslam2": "ORB-SLAM2", "photoslam": "Photo-SLAM",
-                "monogs": "MonoGS", "rampvo": "RampVO"}
-QUATERNION_ORDERS = ("rampvo", "wxyz")
 _MATCH_TOL_S = 5e-4  # external stamps are printed with 6 decimals
-_MONOGS_MIN_GAP_S = 1.0 / 32.0
 
 
 def import_tum_run(
@@ -219,209 +188,7 @@ def _renders_in(renders_dir: str | Path) -> dict[int, Path]:
 
 
 # --------------------------------------------------------------------------------------------
-# what a reader extracts from an external output
-
-
-@dataclass
-class ExternalEstimate:
-    """An external system's output, before it is mapped onto the sequence.
-
-    Attributes:
-        poses: camera-to-world poses, [N, 4, 4].
-        stamps_s: the system's time stamps (export time base), [N]; or None when
-        uids: it identifies frames by index (MonoGS uids), [N].
-        poses_kind: ``"all"`` (every processed frame), ``"keyframes"`` or ``"subset"``.
-        keyframe_stamps_s / keyframe_uids: keyframes, when the system lists them separately.
-        renders: render file per keyframe image name or uid (``name_or_uid -> path``).
-        scale_free: monocular estimate (metric scale unknown).
-        reported: the system's own metrics, kept for reference.
-        sources: files read.
-        ply: the system's Gaussian map, if any.
-    """
-
-    poses: np.ndarray
-    stamps_s: np.ndarray | None = None
-    uids: np.ndarray | None = None
-    poses_kind: str = "all"
-    keyframe_stamps_s: np.ndarray | None = None
-    keyframe_uids: np.ndarray | None = None
-    renders: dict[str | int, Path] = field(default_factory=dict)
-    scale_free: bool = False
-    reported: dict[str, Any] = field(default_factory=dict)
-    sources: list[str] = field(default_factory=list)
-    ply: Path | None = None
-
-
-def read_orbslam2(source: str | Path, *, camera_file: str = "CameraTrajectory.txt",
-                  keyframe_file: str = "KeyFrameTrajectory.txt") -> ExternalEstimate:
-    """ORB-SLAM2 (or ORB-SLAM3 with ``*_TUM.txt`` names): a folder holding both files, or one
-    of them (a file whose name contains ``KeyFrame`` is the keyframe trajectory)."""
-    source = Path(source)
-    cam: Path | None
-    kf: Path | None
-    if source.is_dir():
-        cam, kf = source / camera_file, source / keyframe_file
-        cam = cam if cam.is_file() else None
-        kf = kf if kf.is_file() else None
-    elif source.is_file():
-        cam, kf = (None, source) if "keyframe" in source.name.lower() else (source, None)
-    else:
-        raise InputError(source, "not found")
-    if cam is not None:
-        traj = read_tum(cam, min_poses=3)
-        est = ExternalEstimate(traj.poses, stamps_s=traj.timestamps, sources=[str(cam)])
-        if kf is not None:
-            est.keyframe_stamps_s = read_tum(kf).timestamps
-            est.sources.append(str(kf))
-        return est
-    if kf is None:
-        raise InputError(source, f"holds neither {camera_file} nor {keyframe_file}")
-    traj = read_tum(kf, min_poses=3)
-    return ExternalEstimate(traj.poses, stamps_s=traj.timestamps, poses_kind="keyframes",
-                            keyframe_stamps_s=traj.timestamps, sources=[str(kf)])
-
-
-_SHUTDOWN = re.compile(r"^(\d+)_shutdown$")
-_PHOTO_RENDER = re.compile(r"^(\d+)_(\d+)\.jpg$")
-
-
-def read_photoslam(source: str | Path) -> ExternalEstimate:
-    """Photo-SLAM's output folder: trajectories plus keyframe renders of the last
-    ``<iter>_shutdown`` folder, keyed by the image file the keyframe came from."""
-    source = Path(source)
-    if not source.is_dir():
-        raise InputError(source, "Photo-SLAM output folder not found")
-    est = read_orbslam2(source, camera_file="CameraTrajectory_TUM.txt",
-                        keyframe_file="KeyFrameTrajectory_TUM.txt")
-    shutdowns = sorted((int(m.group(1)), p) for p in source.iterdir()
-                       if p.is_dir() and (m := _SHUTDOWN.match(p.name)))
-    if not shutdowns:
-        return est
-    it, folder = shutdowns[-1]
-    cameras = folder / "ply" / "cameras.json"
-    images = folder / "image"
-    if not images.is_dir():
-        return est
-    if not cameras.is_file():
-        raise InputError(cameras, "not found: it maps the keyframe ids of the renders in "
-                                  f"{images} to image files")
-    try:
-        entries = json.loads(cameras.read_text())
-        names = {int(e["id"]): str(e["img_name"]) for e in entries}
-    except (json.JSONDecodeError, KeyError, TypeError, ValueError) as exc:
-        raise InputError(cameras, f"not a Photo-SLAM cameras.json ({exc})") from None
-    for f in sorted(images.iterdir()):
-        m = _PHOTO_RENDER.match(f.name)
-        if not m or int(m.group(1)) != it:
-            continue
-        kfid = int(m.group(2))
-        if kfid not in names:
-            raise InputError(f, f"keyframe id {kfid} is not in {cameras}")
-        est.renders[names[kfid]] = f
-    est.sources += [str(cameras), str(images)]
-    return est
-
-
-def _monogs_json(path: Path) -> tuple[np.ndarray, np.ndarray]:
-    try:
-        data = json.loads(path.read_text())
-    except (OSError, json.JSONDecodeError) as exc:
-        raise InputError(path, f"not a MonoGS trajectory JSON ({exc})") from None
-    if not isinstance(data, dict) or "trj_id" not in data or "trj_est" not in data:
-        raise InputError(path, "not a MonoGS trajectory JSON (needs 'trj_id' and 'trj_est')")
-    try:
-        uids = np.asarray(data["trj_id"], dtype=np.int64)
-        poses = np.asarray(data["trj_est"], dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise InputError(path, f"malformed 'trj_id' / 'trj_est' ({exc})") from None
-    if poses.ndim != 3 or poses.shape[1:] != (4, 4) or len(poses) != len(uids):
-        raise InputError(path, f"'trj_est' must hold one 4x4 matrix per 'trj_id' entry, got "
-                               f"shape {poses.shape} for {len(uids)} ids")
-    if len(uids) < 3:
-        raise InputError(path, f"holds {len(uids)} poses, at least 3 needed")
-    if not np.isfinite(poses).all():
-        raise InputError(path, "non-finite pose values")
-    rot = poses[:, :3, :3]
-    err = np.abs(rot.transpose(0, 2, 1) @ rot - np.eye(3)).max(axis=(1, 2))
-    if (err > 1e-4).any() or (uids < 0).any() or len(np.unique(uids)) != len(uids):
-        raise InputError(path, "'trj_est' holds a matrix that is not a rigid transform, or "
-                               "'trj_id' has negative or repeated ids")
-    order = np.argsort(uids)
-    return uids[order], poses[order]
-
-
-def read_monogs(source: str | Path) -> ExternalEstimate:
-    """MonoGS: a result folder (``plot/trj_final.json``, metrics, ``point_cloud``) or a
-    ``trj_*.json`` file (also one written for all frames by a dump hook: then every uid is
-    present and the estimate counts as all frames)."""
-    source = Path(source)
-    folder = source if source.is_dir() else None
-    path = source / "plot" / "trj_final.json" if folder is not None else source
-    if not path.is_file():
-        raise InputError(path, "not found (MonoGS writes it with --eval or save_results)")
-    uids, poses = _monogs_json(path)
-    dense = len(uids) == int(uids.max()) + 1
-    est = ExternalEstimate(poses, uids=uids, poses_kind="all" if dense else "keyframes",
-                           keyframe_uids=None if dense else uids, sources=[str(path)])
-    if folder is not None:
-        for name, rel in (("ate_stats", "plot/stats_final.json"),
-                          ("rendering_before_opt", "psnr/before_opt/final_result.json"),
-                          ("rendering_after_opt", "psnr/after_opt/final_result.json")):
-            f = folder / rel
-            if f.is_file():
-                try:
-                    est.reported[name] = json.loads(f.read_text())
-                except json.JSONDecodeError as exc:
-                    raise InputError(f, f"not valid JSON ({exc})") from None
-        ply = folder / "point_cloud" / "final" / "point_cloud.ply"
-        est.ply = ply if ply.is_file() else None
-    return est
-
-
-def read_rampvo(source: str | Path, quaternion: str = "rampvo") -> ExternalEstimate:
-    """RampVO's ``stamped_traj_estimate.txt`` (see the module docstring for its columns)."""
-    if quaternion not in QUATERNION_ORDERS:
-        raise ConfigError(f"quaternion order must be one of {', '.join(QUATERNION_ORDERS)}, "
-                          f"not {quaternion!r}")
-    path = Path(source)
-    if path.is_dir():
-        path = path / "stamped_traj_estimate.txt"
-    if not path.is_file():
-        raise InputError(path, "not found")
-    try:
-        data = np.loadtxt(path, ndmin=2)
-    except ValueError as exc:
-        raise InputError(path, f"not a table of numbers ({exc})") from None
-    if data.shape[1] != 8:
-        raise InputError(path, f"expected 8 columns (t x y z and a quaternion), found "
-                               f"{data.shape[1]}")
-    if len(data) < 3 or not np.isfinite(data).all():
-        raise InputError(path, "needs at least 3 finite poses")
-    data = data[np.argsort(data[:, 0], kind="stable")]
-    c = data[:, 4:8]
-    q_xyzw = c[:, [3, 0, 1, 2]] if quaternion == "rampvo" else c[:, [1, 2, 3, 0]]
-    if (np.linalg.norm(q_xyzw, axis=1) < 1e-6).any():
-        raise InputError(path, "zero quaternion")
-    return ExternalEstimate(pose_from_tq(data[:, 1:4], q_xyzw), stamps_s=data[:, 0],
-                            poses_kind="subset", scale_free=True, sources=[str(path)])
-
-
-READERS = {"orbslam2": read_orbslam2, "photoslam": read_photoslam, "monogs": read_monogs,
-           "rampvo": read_rampvo}
-
-
-# --------------------------------------------------------------------------------------------
 # mapping onto the sequence
-
-
-def monogs_kept_frames(stamps_s: np.ndarray) -> np.ndarray:
-    """Indices of the frames MonoGS' TUM loader keeps: each one more than 1/32 s after the last
-    kept one (its uids index this list)."""
-    kept = [0]
-    for i in range(1, len(stamps_s)):
-        if stamps_s[i] - stamps_s[kept[-1]] > _MONOGS_MIN_GAP_S:
-            kept.append(i)
-    return np.asarray(kept, dtype=np.int64)
 
 
 def _nearest(reference: np.ndarray, stamps: np.ndarray, source: str | Path,
@@ -473,8 +240,6 @@ class _Frames:
 
 def _frames(export_dir: str | Path | None, seq: Sequence) -> _Frames:
     if export_dir is not None:
-        from egs_bench.interop.export import read_export_index
-
         idx = read_export_index(export_dir)
         return _Frames(idx.frame, idx.t_export_s, idx.t_sequence_s, idx.rgb, idx.format,
                        f"the export {idx.path}")
@@ -484,40 +249,38 @@ def _frames(export_dir: str | Path | None, seq: Sequence) -> _Frames:
     return _Frames(np.arange(n), stamps, stamps, rgb, None, f"sequence {seq.path}")
 
 
-def _monogs_loaded(frames: _Frames) -> np.ndarray:
-    """Export-frame indices of the frames MonoGS loads (its uids index them): its TUM loader
-    drops frames closer than 1/32 s, its Replica loader none."""
-    if frames.export_format == "replica":
+def _loaded(system: ExternalSystem, frames: _Frames) -> np.ndarray:
+    """Export-frame indices of the frames ``system`` loads (a system's frame uids index
+    them): every frame, unless the system says otherwise (``loaded_frames``)."""
+    if system.loaded_frames is None:
         return np.arange(len(frames.frame))
-    return monogs_kept_frames(frames.t_external)
+    return system.loaded_frames(frames.export_format, frames.t_external)
 
 
-def _frames_processed(est: ExternalEstimate, frames: _Frames) -> int | None:
+def _frames_processed(est: ExternalEstimate, frames: _Frames, system: ExternalSystem
+                      ) -> int | None:
     """Leading sequence frames an external system read, when its keyframe file says it ran to
-    the end (MonoGS ``trj_final.json``, ORB-SLAM's keyframe file: both written at shutdown);
-    None otherwise (evaluation then counts up to the last pose)."""
-    if est.poses_kind != "keyframes":
+    the end (``written_at_end``: MonoGS ``trj_final.json``, ORB-SLAM's keyframe file, both
+    written at shutdown); None otherwise (evaluation then counts up to the last pose)."""
+    if est.poses_kind != "keyframes" or not est.written_at_end:
         return None
-    if est.uids is not None:
-        if not any(Path(src).name == "trj_final.json" for src in est.sources):
-            return None  # an intermediate trj_<n>.json: MonoGS was still running
-        return int(frames.frame[_monogs_loaded(frames)].max()) + 1
-    return int(frames.frame.max()) + 1
+    loaded = _loaded(system, frames) if est.uids is not None else np.arange(len(frames.frame))
+    return int(frames.frame[loaded].max()) + 1
 
 
-def _to_export_frames(est: ExternalEstimate, frames: _Frames, fmt: str,
-                      source: Path) -> tuple[np.ndarray, np.ndarray | None]:
+def _to_export_frames(est: ExternalEstimate, frames: _Frames, source: Path,
+                      system: ExternalSystem) -> tuple[np.ndarray, np.ndarray | None]:
     """Export-frame index of every pose and of every keyframe."""
     if est.uids is not None:
-        kept = _monogs_loaded(frames)
+        kept = _loaded(system, frames)
         if est.uids.max() >= len(kept):
             raise InputError(source, f"frame uid {int(est.uids.max())} beyond the "
-                                     f"{len(kept)} frames MonoGS loads from {frames.what}")
+                                     f"{len(kept)} frames {system.title} loads from {frames.what}")
         kf = kept[est.keyframe_uids] if est.keyframe_uids is not None else None
         return kept[est.uids], kf
     stamps = np.asarray(est.stamps_s, dtype=np.float64)
     ref = np.sort(frames.t_external)
-    scale = _unit_scale(stamps, ref) if fmt == "rampvo" else 1.0
+    scale = _unit_scale(stamps, ref) if est.stamps_unit_unknown else 1.0
     idx = _nearest(frames.t_external, stamps * scale, source, frames.what)
     kf = None
     if est.keyframe_stamps_s is not None:
@@ -566,7 +329,8 @@ def import_external_run(
     Args:
         source: the system's output file or folder.
         out_dir: run folder to create.
-        fmt: ``orbslam2``, ``photoslam``, ``monogs`` or ``rampvo`` (``tum``: use
+        fmt: the system's key in :mod:`egs_bench.interop.registry` (``orbslam2``,
+            ``photoslam``, ``monogs``, ``rampvo``, or a registered one; ``tum``: use
             :func:`import_tum_run`).
         export_dir: the ``egs-bench export`` folder the system ran on (maps its stamps / frame
             uids back to sequence frames; names the sequence).
@@ -585,24 +349,21 @@ def import_external_run(
     """
     from egs_bench.datasets.sequence import Sequence
 
-    if fmt not in READERS:
-        raise ConfigError(f"unknown import format {fmt!r}; choose one of "
-                          f"{', '.join(IMPORT_FORMATS)}")
+    system = importable_system(fmt)
+    assert system.read is not None  # importable_system returns a system with a reader
     source = Path(source)
-    est = read_rampvo(source, quaternion) if fmt == "rampvo" else READERS[fmt](source)
+    est = system.read(source, ImportOptions(quaternion=quaternion))
     if sequence_path is None:
         if export_dir is None:
             raise InputError(out_dir, "an import needs the export folder (--export) or the "
                                       "sequence folder (--sequence-path)")
-        from egs_bench.interop.export import read_export_index
-
         sequence_path = read_export_index(export_dir).sequence_path
     seq = Sequence.open(sequence_path)
     frames = _frames(export_dir, seq)
     if len(frames.frame) and frames.frame.max() >= len(seq):
         raise InputError(Path(export_dir or sequence_path), f"maps to frame "
                          f"{int(frames.frame.max())}, beyond the sequence's {len(seq)} frames")
-    idx, kf_idx = _to_export_frames(est, frames, fmt, source)
+    idx, kf_idx = _to_export_frames(est, frames, source, system)
     seq_frames = frames.frame[idx]
     order = np.argsort(seq_frames, kind="stable")
     seq_frames, poses = seq_frames[order], est.poses[order]
@@ -635,15 +396,13 @@ def import_external_run(
     renders_kind = "none" if not renders else (
         "all" if len(renders) >= len(seq) else
         "keyframes" if est.poses_kind == "keyframes" or est.renders else "subset")
-    name = method or METHOD_NAMES[fmt]
+    name = method or system.title
     config = {"imported_from": [str(Path(s).resolve()) for s in est.sources],
               "format": fmt, "export": str(Path(export_dir).resolve()) if export_dir else None,
-              "render_ply": bool(render_ply)}
-    if fmt == "rampvo":
-        config["quaternion_columns"] = quaternion
+              "render_ply": bool(render_ply), **est.settings}
     estimate: dict[str, Any] = {"poses": est.poses_kind, "renders": renders_kind,
                                 "scale_free": est.scale_free, "format": fmt}
-    processed = _frames_processed(est, frames)
+    processed = _frames_processed(est, frames, system)
     if processed is not None:
         estimate["frames_processed"] = processed
     with _new_run(out_dir, overwrite=overwrite, method=name,
@@ -658,8 +417,6 @@ def import_external_run(
         for f, image in sorted(renders.items()):  # checked by _check_renders
             run.write_render(f, image if isinstance(image, np.ndarray) else read_ldr_image(image))
         if est.reported:
-            from egs_bench.fileio import write_text_atomic
-
             write_text_atomic(run.path / "reported_metrics.json",
                               json.dumps(est.reported, indent=1) + "\n")
         run.log(f"imported {len(poses)} {est.poses_kind} poses ({fmt}) of {len(seq)} frames "
