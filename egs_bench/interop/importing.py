@@ -36,9 +36,8 @@ from egs_bench.fileio import atomic_dir, write_text_atomic
 from egs_bench.geometry import Intrinsics, Trajectory, read_tum
 from egs_bench.images import read_ldr_image
 from egs_bench.interop.export import read_export_index
-from egs_bench.interop.monogs import monogs_kept_frames
 from egs_bench.interop.registry import importable_system
-from egs_bench.interop.systems import ExternalEstimate, ImportOptions
+from egs_bench.interop.systems import ExternalEstimate, ExternalSystem, ImportOptions
 from egs_bench.outputs import prepare_output
 from egs_bench.runs.folder import RunFolder
 
@@ -250,35 +249,33 @@ def _frames(export_dir: str | Path | None, seq: Sequence) -> _Frames:
     return _Frames(np.arange(n), stamps, stamps, rgb, None, f"sequence {seq.path}")
 
 
-def _monogs_loaded(frames: _Frames) -> np.ndarray:
-    """Export-frame indices of the frames MonoGS loads (its uids index them): its TUM loader
-    drops frames closer than 1/32 s, its Replica loader none."""
-    if frames.export_format == "replica":
+def _loaded(system: ExternalSystem, frames: _Frames) -> np.ndarray:
+    """Export-frame indices of the frames ``system`` loads (a system's frame uids index
+    them): every frame, unless the system says otherwise (``loaded_frames``)."""
+    if system.loaded_frames is None:
         return np.arange(len(frames.frame))
-    return monogs_kept_frames(frames.t_external)
+    return system.loaded_frames(frames.export_format, frames.t_external)
 
 
-def _frames_processed(est: ExternalEstimate, frames: _Frames) -> int | None:
+def _frames_processed(est: ExternalEstimate, frames: _Frames, system: ExternalSystem
+                      ) -> int | None:
     """Leading sequence frames an external system read, when its keyframe file says it ran to
-    the end (MonoGS ``trj_final.json``, ORB-SLAM's keyframe file: both written at shutdown);
-    None otherwise (evaluation then counts up to the last pose)."""
-    if est.poses_kind != "keyframes":
+    the end (``written_at_end``: MonoGS ``trj_final.json``, ORB-SLAM's keyframe file, both
+    written at shutdown); None otherwise (evaluation then counts up to the last pose)."""
+    if est.poses_kind != "keyframes" or not est.written_at_end:
         return None
-    if est.uids is not None:
-        if not any(Path(src).name == "trj_final.json" for src in est.sources):
-            return None  # an intermediate trj_<n>.json: MonoGS was still running
-        return int(frames.frame[_monogs_loaded(frames)].max()) + 1
-    return int(frames.frame.max()) + 1
+    loaded = _loaded(system, frames) if est.uids is not None else np.arange(len(frames.frame))
+    return int(frames.frame[loaded].max()) + 1
 
 
-def _to_export_frames(est: ExternalEstimate, frames: _Frames,
-                      source: Path) -> tuple[np.ndarray, np.ndarray | None]:
+def _to_export_frames(est: ExternalEstimate, frames: _Frames, source: Path,
+                      system: ExternalSystem) -> tuple[np.ndarray, np.ndarray | None]:
     """Export-frame index of every pose and of every keyframe."""
     if est.uids is not None:
-        kept = _monogs_loaded(frames)
+        kept = _loaded(system, frames)
         if est.uids.max() >= len(kept):
             raise InputError(source, f"frame uid {int(est.uids.max())} beyond the "
-                                     f"{len(kept)} frames MonoGS loads from {frames.what}")
+                                     f"{len(kept)} frames {system.title} loads from {frames.what}")
         kf = kept[est.keyframe_uids] if est.keyframe_uids is not None else None
         return kept[est.uids], kf
     stamps = np.asarray(est.stamps_s, dtype=np.float64)
@@ -366,7 +363,7 @@ def import_external_run(
     if len(frames.frame) and frames.frame.max() >= len(seq):
         raise InputError(Path(export_dir or sequence_path), f"maps to frame "
                          f"{int(frames.frame.max())}, beyond the sequence's {len(seq)} frames")
-    idx, kf_idx = _to_export_frames(est, frames, source)
+    idx, kf_idx = _to_export_frames(est, frames, source, system)
     seq_frames = frames.frame[idx]
     order = np.argsort(seq_frames, kind="stable")
     seq_frames, poses = seq_frames[order], est.poses[order]
@@ -405,7 +402,7 @@ def import_external_run(
               "render_ply": bool(render_ply), **est.settings}
     estimate: dict[str, Any] = {"poses": est.poses_kind, "renders": renders_kind,
                                 "scale_free": est.scale_free, "format": fmt}
-    processed = _frames_processed(est, frames)
+    processed = _frames_processed(est, frames, system)
     if processed is not None:
         estimate["frames_processed"] = processed
     with _new_run(out_dir, overwrite=overwrite, method=name,

@@ -135,7 +135,9 @@ def read_monogs(source: str | Path) -> ExternalEstimate:
     uids, poses = _monogs_json(path)
     dense = len(uids) == int(uids.max()) + 1
     est = ExternalEstimate(poses, uids=uids, poses_kind="all" if dense else "keyframes",
-                           keyframe_uids=None if dense else uids, sources=[str(path)])
+                           keyframe_uids=None if dense else uids, sources=[str(path)],
+                           # an intermediate trj_<n>.json: MonoGS was still running
+                           written_at_end=path.name == "trj_final.json")
     if folder is not None:
         for name, rel in (("ate_stats", "plot/stats_final.json"),
                           ("rendering_before_opt", "psnr/before_opt/final_result.json"),
@@ -155,7 +157,15 @@ def _read(source: Path, options: ImportOptions) -> ExternalEstimate:
     return read_monogs(source)
 
 
+def loaded_frames(layout: str | None, stamps_s: np.ndarray) -> np.ndarray:
+    """The export frames MonoGS loads (its uids index them): its TUM loader drops frames
+    closer than 1/32 s (:func:`monogs_kept_frames`), its Replica loader none."""
+    if layout == "replica":
+        return np.arange(len(stamps_s))
+    return monogs_kept_frames(stamps_s)
+
+
 SYSTEM = ExternalSystem(
-    key="monogs", title="MonoGS", read=_read,
+    key="monogs", title="MonoGS", read=_read, loaded_frames=loaded_frames,
     camera_files={"tum-rgbd": CameraFile("monogs_rgbd.yaml", _config_file),
                   "replica": CameraFile("monogs_replica.yaml", _config_file)})

@@ -76,8 +76,10 @@ def read_orbslam2(source: str | Path, *, camera_file: str = "CameraTrajectory.tx
     if kf is None:
         raise InputError(source, f"holds neither {camera_file} nor {keyframe_file}")
     traj = read_tum(kf, min_poses=3)
+    # ORB-SLAM writes its keyframe trajectory at shutdown
     return ExternalEstimate(traj.poses, stamps_s=traj.timestamps, poses_kind="keyframes",
-                            keyframe_stamps_s=traj.timestamps, sources=[str(kf)])
+                            keyframe_stamps_s=traj.timestamps, sources=[str(kf)],
+                            written_at_end=True)
 
 
 def _read(source: Path, options: ImportOptions) -> ExternalEstimate:

@@ -43,6 +43,9 @@ class ExternalEstimate:
             ten): the import finds the one that matches the export's stamps.
         settings: how the output was read (e.g. a column order), recorded in the run's
             ``config.yaml``.
+        written_at_end: the output is a file the system writes once it has read its whole
+            input (at shutdown): a keyframe-only estimate then counts every frame the system
+            read as processed, not only those up to the last keyframe.
     """
 
     poses: np.ndarray
@@ -58,6 +61,7 @@ class ExternalEstimate:
     ply: Path | None = None
     stamps_unit_unknown: bool = False
     settings: dict[str, Any] = field(default_factory=dict)
+    written_at_end: bool = False
 
 
 @dataclass(frozen=True)
@@ -129,9 +133,13 @@ class ExternalSystem:
         read: reads its output (a file or folder) into an :class:`ExternalEstimate`; None for
             a system egs-bench only exports to.
         camera_files: per export layout it reads, the camera file it needs.
+        loaded_frames: for a system whose output names frames by uid: the export frames it
+            loads, which the uids index (``(export layout, export time stamps [N] s) ->
+            indices``); None: every frame.
     """
 
     key: str
     title: str
     read: Callable[[Path, ImportOptions], ExternalEstimate] | None = None
     camera_files: Mapping[str, CameraFile] = field(default_factory=dict)
+    loaded_frames: Callable[[str | None, np.ndarray], np.ndarray] | None = None
