@@ -20,9 +20,10 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import pytest
 
-if TYPE_CHECKING:
+if TYPE_CHECKING:  # worker processes import this module: no test-only imports at run time
+    import pytest
+
     from egs_bench.datasets.sequence import Sequence
     from egs_bench.runs.folder import RunFolder
 
