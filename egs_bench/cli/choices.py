@@ -33,6 +33,7 @@ MapBackend = Literal["auto", "numba", "gsplat"]
 SweepBackend = Literal["local", "slurm"]  # experiments.sweep.BACKENDS
 SubmititCluster = Literal["slurm", "local", "debug"]
 Interpolator = Literal["depth", "flow"]  # datasets.eventreplica.interpolate.INTERPOLATORS
+RgbdLayout = Literal["replica", "tum-rgbd", "generic"]  # datasets.rgbd_layouts.LAYOUTS
 TimesUnit = Literal["us", "ms", "s", "ns"]
 FrameStamp = Literal["start", "mid", "end"]
 ListWhat = Literal["methods", "scenes"]

@@ -9,7 +9,7 @@ import typer
 
 from egs_bench.cli.app import QUIET, SEED_MAX, app
 from egs_bench.cli.app import out as _out
-from egs_bench.cli.choices import Interpolator
+from egs_bench.cli.choices import Interpolator, RgbdLayout
 
 
 @app.command("make-eventreplica")
@@ -25,7 +25,7 @@ def make_eventreplica_cmd(
              "results/depthNNNNNN.png (scale 6553.5), traj.txt (16 numbers per line, c2w); "
              "with --layout tum-rgbd a TUM RGB-D folder.",
     ),
-    layout: str = typer.Option(
+    layout: RgbdLayout = typer.Option(
         "replica", "--layout",
         help="Input layout: 'replica' (NICE-SLAM), 'tum-rgbd' (--input with rgb.txt, depth.txt, "
              "groundtruth.txt; depth scale 5000) or 'generic' (--rgb-dir, --depth-dir, "

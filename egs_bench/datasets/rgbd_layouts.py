@@ -50,7 +50,7 @@ import math
 import re
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal, get_args
 
 import numpy as np
 import yaml
@@ -61,7 +61,8 @@ from egs_bench.fileio import read_text
 from egs_bench.geometry import Intrinsics, read_tum
 from egs_bench.images import image_header
 
-LAYOUTS = ("replica", "tum-rgbd", "generic")
+RgbdLayout = Literal["replica", "tum-rgbd", "generic"]
+LAYOUTS: tuple[RgbdLayout, ...] = get_args(RgbdLayout)
 TUM_DEPTH_SCALE = 5000.0
 #: associate.py's default --max_difference
 DEFAULT_MAX_DT_S = 0.02
@@ -129,7 +130,7 @@ class RGBDInput:
         max_dt_s: association window of the TUM layout, seconds.
     """
 
-    layout: str = "replica"
+    layout: RgbdLayout = "replica"
     path: Path | None = None
     rgb_dir: Path | None = None
     depth_dir: Path | None = None

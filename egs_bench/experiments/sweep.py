@@ -17,7 +17,7 @@ import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal, get_args
 
 import pandas as pd
 
@@ -39,7 +39,8 @@ from egs_bench.fileio import DISK_FULL, write_text_atomic
 from egs_bench.runs.folder import RunFolder
 from egs_bench.runs.locations import SUMMARY_CSV, SUMMARY_MD
 
-BACKENDS = ("local", "slurm")
+SweepBackend = Literal["local", "slurm"]
+BACKENDS: tuple[SweepBackend, ...] = get_args(SweepBackend)
 DONE_STATES = ("done",)
 
 
@@ -223,7 +224,7 @@ def write_summary(out: Path, df: pd.DataFrame) -> str:
 
 
 def run_sweep(spec: SweepSpec, *, out: Path | None = None,
-              extra_options: Mapping[str, Any] | None = None, backend: str = "local",
+              extra_options: Mapping[str, Any] | None = None, backend: SweepBackend = "local",
               shard: tuple[int, int] | None = None, force: bool = False,
               retry_failed: bool = False, jobs: int | None = None,
               threads_per_job: int | None = None, cluster: str = "slurm", wait: bool = True,

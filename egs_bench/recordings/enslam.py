@@ -32,7 +32,7 @@ import re
 from collections.abc import Iterator
 from dataclasses import replace
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 import yaml
@@ -49,7 +49,7 @@ from egs_bench.recordings.importer import (
     require_depth_scale,
     write_sequence,
 )
-from egs_bench.recordings.streams import EventSource, exposure_windows
+from egs_bench.recordings.streams import EventSource, FrameStamp, exposure_windows
 
 #: the files of one sequence, relative to its folder
 LAYOUT = {
@@ -66,7 +66,9 @@ CSV_CHUNK_ROWS = 1 << 20
 #: ``<seconds>.<fraction>`` as the toolkit names images
 _STAMP = re.compile(r"^(\d+)\.(\d{1,9})$")
 #: what the two frame choices read
-FRAME_SOURCES = {"rgbd": "rgb", "davis": "davis_rgb"}
+#: Which camera the frames come from: the RGB-D sensors colour or the DAVIS frames.
+EnslamFrames = Literal["rgbd", "davis"]
+FRAME_SOURCES: dict[EnslamFrames, str] = {"rgbd": "rgb", "davis": "davis_rgb"}
 
 
 def stamp_us(path: Path) -> int:
@@ -184,7 +186,7 @@ def _event_batch(chunk: Any, path: Path, first_row: int) -> Events:
 
 
 def import_enslam(root: str | Path, out: str | Path, *, calib: str | Path,
-                  exposure_us: int, frame_stamp: str, frames: str = "rgbd",
+                  exposure_us: int, frame_stamp: FrameStamp, frames: EnslamFrames = "rgbd",
                   max_depth_dt_us: int = 15_000, max_gt_gap_us: int = 50_000,
                   first_frame: int = 0, max_frames: int | None = None, name: str | None = None,
                   sensors: dict[str, str] | None = None, overwrite: bool = False,

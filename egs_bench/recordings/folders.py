@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Literal
 
 import numpy as np
 
@@ -18,10 +19,17 @@ from egs_bench.errors import InputError
 from egs_bench.fileio import read_text
 from egs_bench.geometry import read_tum
 from egs_bench.images import read_depth_png, read_ldr_image
-from egs_bench.recordings.streams import DepthStream, FrameStream, PoseTrack, exposure_windows
+from egs_bench.recordings.streams import (
+    DepthStream,
+    FrameStamp,
+    FrameStream,
+    PoseTrack,
+    exposure_windows,
+)
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
-UNIT_TO_US = {"us": 1.0, "s": 1e6, "ms": 1e3, "ns": 1e-3}
+TimesUnit = Literal["us", "ms", "s", "ns"]
+UNIT_TO_US: dict[TimesUnit, float] = {"us": 1.0, "s": 1e6, "ms": 1e3, "ns": 1e-3}
 
 
 def list_images(folder: Path) -> list[Path]:
@@ -34,7 +42,7 @@ def list_images(folder: Path) -> list[Path]:
     return files
 
 
-def read_times(path: Path, columns: tuple[int, ...], unit: str = "us") -> np.ndarray:
+def read_times(path: Path, columns: tuple[int, ...], unit: TimesUnit = "us") -> np.ndarray:
     """A whitespace/comma separated times file -> int64 microseconds [N, C].
 
     Raises:
@@ -67,7 +75,7 @@ def read_times(path: Path, columns: tuple[int, ...], unit: str = "us") -> np.nda
     return t
 
 
-def frame_folder(folder: Path, times: Path, unit: str, stamp: str,
+def frame_folder(folder: Path, times: Path, unit: TimesUnit, stamp: FrameStamp,
                  exposure_us: int | None) -> FrameStream:
     """Frames from an image folder and a times file (see the module docstring)."""
     files = list_images(folder)
@@ -102,7 +110,8 @@ def image_frames(label: str, files: list[Path], t_start_us: np.ndarray, t_end_us
     return FrameStream(label, t_start_us, t_end_us, w, h, load)
 
 
-def depth_folder(folder: Path, times: Path, unit: str, depth_scale: float) -> DepthStream:
+def depth_folder(folder: Path, times: Path, unit: TimesUnit, depth_scale: float
+                 ) -> DepthStream:
     """16-bit depth PNGs (``value / depth_scale`` metres, 0 = invalid) and their times."""
     files = list_images(folder)
     t = read_times(times, (1,), unit)[:, 0]

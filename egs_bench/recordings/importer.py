@@ -38,8 +38,15 @@ from egs_bench.progress import ProgressBar
 from egs_bench.recordings.calib import RecordingCalib, load_calib
 from egs_bench.recordings.camera import CameraModel
 from egs_bench.recordings.depth import reproject_depth, warp_to_depth_camera
+from egs_bench.recordings.folders import TimesUnit
 from egs_bench.recordings.presets import get_preset
-from egs_bench.recordings.streams import DepthStream, EventSource, FrameStream, PoseTrack
+from egs_bench.recordings.streams import (
+    DepthStream,
+    EventSource,
+    FrameStamp,
+    FrameStream,
+    PoseTrack,
+)
 
 if TYPE_CHECKING:
     from egs_bench.recordings.aedat4 import Aedat4File
@@ -92,9 +99,9 @@ class RecordingSpec:
     camera_info_topic: str | None = None
     frame_times: Path | None = None
     depth_times: Path | None = None
-    frame_stamp: str | None = None
+    frame_stamp: FrameStamp | None = None
     exposure_us: int | None = None
-    times_unit: str = "us"
+    times_unit: TimesUnit = "us"
     max_depth_dt_us: int = 15_000
     max_gt_gap_us: int = 50_000
     first_frame: int = 0

@@ -8,8 +8,12 @@ differ per recording day. ``egs-bench recording-presets`` prints them.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 from egs_bench.errors import ConfigError
+
+if TYPE_CHECKING:
+    from egs_bench.recordings.streams import FrameStamp
 
 
 @dataclass(frozen=True)
@@ -35,7 +39,7 @@ class RecordingPreset:
     exposure_topic: str | None = None
     depth_topic: str | None = None
     gt_topic: str | None = None
-    frame_stamp: str = "mid"
+    frame_stamp: FrameStamp = "mid"
     depth_source: str = "rgbd"
     events_on_frame_sensor: bool = True
     sensors: dict[str, str] = field(default_factory=dict)

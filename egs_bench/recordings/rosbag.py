@@ -31,6 +31,7 @@ from egs_bench.recordings.camera import CameraModel
 from egs_bench.recordings.streams import (
     DepthStream,
     EventSource,
+    FrameStamp,
     FrameStream,
     PoseTrack,
     exposure_windows,
@@ -163,7 +164,7 @@ class BagFile:
                         raise InputError(self.path, f"{topic} message {i}: {exc}") from None
         return label, load
 
-    def frame_stream(self, topic: str | None, stamp: str, exposure_us: int | None,
+    def frame_stream(self, topic: str | None, stamp: FrameStamp, exposure_us: int | None,
                      exposure_topic: str | None) -> FrameStream:
         """Frames of an Image topic; exposure from ``exposure_topic`` (per frame, matched by
         bag time) or the constant ``exposure_us``; ``stamp`` says what the header stamp marks."""

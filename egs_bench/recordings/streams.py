@@ -9,11 +9,15 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
+from typing import Literal
 
 import cv2
 import numpy as np
 
 from egs_bench.datasets.events import Events
+
+#: What a frame's one time stamp marks in its exposure.
+FrameStamp = Literal["start", "mid", "end"]
 
 
 @dataclass
@@ -130,7 +134,7 @@ def to_rgb8(image: np.ndarray, encoding: str) -> np.ndarray:
                      "(mono8, mono16, rgb8, bgr8, rgba8, bgra8, bayer_*8)")
 
 
-def exposure_windows(stamps_us: np.ndarray, exposure_us: np.ndarray | int, stamp: str
+def exposure_windows(stamps_us: np.ndarray, exposure_us: np.ndarray | int, stamp: FrameStamp
                      ) -> tuple[np.ndarray, np.ndarray]:
     """Exposure ``(t_start, t_end)`` [N] int64 from one stamp per frame and the exposure time.
 

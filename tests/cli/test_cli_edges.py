@@ -228,6 +228,7 @@ def test_cli_choices_match_the_library() -> None:
 
     from egs_bench.cli import choices
     from egs_bench.datasets.eventreplica.interpolate import INTERPOLATORS
+    from egs_bench.datasets.rgbd_layouts import LAYOUTS as RGBD_LAYOUTS
     from egs_bench.eval.ate import ALIGNMENTS
     from egs_bench.eval.leaderboard import FORMATS, LAYOUTS
     from egs_bench.eval.lpips import NETS
@@ -238,6 +239,7 @@ def test_cli_choices_match_the_library() -> None:
     from egs_bench.interop.export import FORMATS as EXPORT_FORMATS
     from egs_bench.interop.rampvo import QUATERNION_ORDERS
     from egs_bench.interop.registry import IMPORT_FORMATS
+    from egs_bench.recordings.enslam import FRAME_SOURCES
     from egs_bench.recordings.folders import UNIT_TO_US
     from egs_bench.slam.config import PRESETS
     from egs_bench.slam.map_export import COLOR_MODES
@@ -249,7 +251,8 @@ def test_cli_choices_match_the_library() -> None:
              (choices.TableWidth, WIDTHS), (choices.ImportFormat, IMPORT_FORMATS),
              (choices.QuaternionOrder, QUATERNION_ORDERS), (choices.ExportFormat, EXPORT_FORMATS),
              (choices.MapColors, COLOR_MODES), (choices.SweepBackend, BACKENDS),
-             (choices.Interpolator, INTERPOLATORS), (choices.TimesUnit, UNIT_TO_US)]
+             (choices.Interpolator, INTERPOLATORS), (choices.TimesUnit, UNIT_TO_US),
+             (choices.RgbdLayout, RGBD_LAYOUTS), (choices.EnslamFrames, FRAME_SOURCES)]
     for literal, library in pairs:
         assert set(get_args(literal)) == set(library), literal
 

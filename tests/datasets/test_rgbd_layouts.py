@@ -373,7 +373,7 @@ def test_bad_generic_input_is_one_line_naming_the_file(tiny_sequence: Path, tmp_
 
 
 @pytest.mark.parametrize(("args", "message"), [
-    (["--layout", "tum"], "--layout must be one of replica, tum-rgbd, generic"),
+    (["--layout", "tum"], "'tum' is not one of 'replica', 'tum-rgbd', 'generic'"),
     (["--layout", "tum-rgbd", "--input", "X", "--tum-camera", "fr4"],
      "--tum-camera must be one of fr1, fr2, fr3"),
     (["--layout", "tum-rgbd", "--input", "X", "--max-dt", "nan"],
