@@ -33,7 +33,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import cv2
 import numpy as np
@@ -249,7 +249,7 @@ def export_replica_layout(
     *,
     intrinsics: Intrinsics | None = None,
     depth_scale: float = REPLICA_DEPTH_SCALE,
-    image_format: str = "jpg",
+    image_format: Literal["jpg", "png"] = "jpg",
     jpeg_quality: int = 95,
     overwrite: bool = False,
     jpeg_chroma_444: bool = False,

@@ -39,7 +39,7 @@ from egs_bench.recordings.calib import RecordingCalib, load_calib
 from egs_bench.recordings.camera import CameraModel
 from egs_bench.recordings.depth import reproject_depth, warp_to_depth_camera
 from egs_bench.recordings.folders import TimesUnit
-from egs_bench.recordings.presets import get_preset
+from egs_bench.recordings.presets import DepthSource, get_preset
 from egs_bench.recordings.streams import (
     DepthStream,
     EventSource,
@@ -108,7 +108,7 @@ class RecordingSpec:
     max_frames: int | None = None
     name: str | None = None
     preset: str | None = None
-    depth_source: str | None = None
+    depth_source: DepthSource | None = None
     sensors: dict[str, str] = field(default_factory=dict)
 
 

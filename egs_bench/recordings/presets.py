@@ -8,12 +8,15 @@ differ per recording day. ``egs-bench recording-presets`` prints them.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Literal
 
 from egs_bench.errors import ConfigError
 
 if TYPE_CHECKING:
     from egs_bench.recordings.streams import FrameStamp
+
+#: Where a recording's depth comes from: an RGB-D camera or a LiDAR.
+DepthSource = Literal["rgbd", "lidar"]
 
 
 @dataclass(frozen=True)
@@ -40,7 +43,7 @@ class RecordingPreset:
     depth_topic: str | None = None
     gt_topic: str | None = None
     frame_stamp: FrameStamp = "mid"
-    depth_source: str = "rgbd"
+    depth_source: DepthSource = "rgbd"
     events_on_frame_sensor: bool = True
     sensors: dict[str, str] = field(default_factory=dict)
     downloads: tuple[str, ...] = ()

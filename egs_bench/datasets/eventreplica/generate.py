@@ -21,7 +21,7 @@ import numpy as np
 
 from egs_bench.color import LdrResponse
 from egs_bench.datasets.esim import EventSimConfig
-from egs_bench.datasets.eventreplica.interpolate import make_interpolator
+from egs_bench.datasets.eventreplica.interpolate import InterpolatorName, make_interpolator
 from egs_bench.datasets.eventreplica.resize import ResizeCrop
 from egs_bench.datasets.eventreplica.source import ReplicaSource
 from egs_bench.datasets.pipeline import SamplingConfig, generate_sequence
@@ -55,7 +55,7 @@ def make_eventreplica(
     fps: float = 30.0,
     exposure_ms: float = 20.0,
     upsample: str | int = "auto",
-    interpolator: str = "depth",
+    interpolator: InterpolatorName = "depth",
     width: int = 448,
     height: int = 256,
     resize: tuple[int, int] | Literal["auto"] | None = "auto",

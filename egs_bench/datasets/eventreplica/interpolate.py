@@ -26,7 +26,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Protocol
+from typing import Literal, Protocol
 
 import cv2
 import numpy as np
@@ -227,13 +227,14 @@ class _FlowPair:
         return rgb, depth
 
 
-INTERPOLATORS: dict[str, Callable[[], FrameInterpolator]] = {
+InterpolatorName = Literal["depth", "flow"]
+INTERPOLATORS: dict[InterpolatorName, Callable[[], FrameInterpolator]] = {
     "depth": DepthWarpInterpolator,
     "flow": FlowInterpolator,
 }
 
 
-def make_interpolator(name: str) -> FrameInterpolator:
+def make_interpolator(name: InterpolatorName) -> FrameInterpolator:
     """The interpolator registered under ``name`` (``depth`` or ``flow``) with default settings."""
     try:
         return INTERPOLATORS[name]()
