@@ -105,6 +105,29 @@ def test_a_plugins_config_is_the_group_the_component_reads() -> None:
     assert not isinstance(methods.BUILTIN["egs"].config("cpu").keyframes, EveryNthConfig)
 
 
+def test_every_built_in_part_declares_the_ranged_frozen_config_of_its_group() -> None:
+    import typing
+
+    from egs_bench.slam.components import ROLE_GROUPS
+    from egs_bench.slam.config import GROUPS, RANGES, LossConfig
+    from egs_bench.slam.loss_terms import LOSS_TERMS
+
+    parts = SlamComponents()
+    declared = {group: getattr(parts, role).Config for role, group in ROLE_GROUPS.items()}
+    assert declared == {group: GROUPS[group] for group in ROLE_GROUPS.values()}
+    assert all(term.config is None for term in LOSS_TERMS)
+    assert parts.config_classes() == GROUPS and GROUPS["loss"] is LossConfig
+    for group, cls in parts.config_classes().items():
+        first = dataclasses.fields(cls)[0].name
+        with pytest.raises(dataclasses.FrozenInstanceError):
+            setattr(cls(), first, getattr(cls(), first))
+        for f in dataclasses.fields(cls):
+            kinds = set(typing.get_args(typing.get_type_hints(cls)[f.name])) or {
+                typing.get_type_hints(cls)[f.name]}
+            if kinds & {int, float}:
+                assert f"{group}.{f.name}" in RANGES, f"{group}.{f.name} has no range"
+
+
 def test_a_sweeps_settings_reach_a_plugins_fields() -> None:
     from egs_bench.experiments.spec import typed_options
 
