@@ -331,9 +331,9 @@ def command_line_options(spec: SweepSpec, items: Sequence[str]) -> dict[str, Any
     out: dict[str, Any] = {}
     for item in items:
         first: ConfigError | None = None
-        for method in found or [None]:
+        for candidate in found or [None]:
             try:
-                out.update(parse_method_options(method, [item]))
+                out.update(parse_method_options(candidate, [item]))
                 break
             except ConfigError as exc:
                 first = first or exc
