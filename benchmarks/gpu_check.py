@@ -8,11 +8,14 @@ environment. Steps, each timed and bounded:
    against the CPU);
 3. the built-in 448x256 sequence (generated on first use);
 4. ``egs`` and ``monogs`` on its first ``--frames`` frames, once per ``--runs`` entry
-   ``PRESET[:MAPPING_MODE]`` (default: the paper budget sequential and concurrent, and the
-   ``cpu`` preset, the CPU default): FPS, per-frame seconds, ATE and PSNR against the sharp
-   ground truth, tracking iterations per frame, and the rendering work per frame (cameras,
-   pixels, tile intersections; slam_stats.json's ``work``) next to the time; a run that would
-   start after ``--until-s`` seconds is left out and listed as such;
+   ``PRESET[@SETTING][:MAPPING_MODE]`` (default: the paper budget sequential, the paper budget
+   with the ``r3`` schedule of ``benchmarks/sweeps/paper_levers.yaml``, the ``cpu`` preset (the
+   CPU default) and the paper budget concurrent; ``@SETTING`` names a setting of that sweep
+   file, so the GPU measures exactly the schedule the CPU frontier measured): FPS, per-frame
+   seconds, ATE and PSNR against the sharp ground truth, tracking iterations per frame, and
+   the rendering work per frame (cameras, pixels, tile intersections; slam_stats.json's
+   ``work``) next to the time; a run that would start after ``--until-s`` seconds is left out
+   and listed as such;
 5. the overhead counts of ``bench_slam_overhead.py`` with wall time per iteration;
 6. a torch-profiler trace of one ``egs`` and one ``monogs`` mapping iteration on two
    keyframes (``--profile-views``): CUDA time per kernel, the data that explains why an
@@ -96,8 +99,31 @@ def cuda_tests(timeout_s: float) -> dict:
             "log_tail": lines[-40:]}
 
 
+LEVERS_SWEEP = ROOT / "benchmarks" / "sweeps" / "paper_levers.yaml"
+DEFAULT_RUNS = "paper:sequential,paper@r3:sequential,cpu:sequential,paper:concurrent"
+
+
+def parse_run_entry(entry: str, levers_sweep: Path = LEVERS_SWEEP) -> tuple[str, str, str, dict]:
+    """``PRESET[@SETTING][:MAPPING_MODE]`` -> (label, preset, mapping mode, options).
+
+    The label is ``PRESET`` or ``PRESET@SETTING``; the options are that setting's fields in
+    ``levers_sweep`` (empty without ``@SETTING``)."""
+    import yaml
+
+    head, _, schedule = entry.partition(":")
+    preset, _, setting = head.partition("@")
+    options: dict = {}
+    if setting:
+        settings = (yaml.safe_load(levers_sweep.read_text()) or {}).get("settings") or {}
+        if setting not in settings:
+            raise SystemExit(f"gpu_check: --runs {entry!r}: {levers_sweep.name} has no setting "
+                             f"{setting!r} (it has {', '.join(sorted(settings))})")
+        options = dict(settings[setting])
+    return head, preset, schedule or "sequential", options
+
+
 def run_method(method: str, seq: Sequence, frames: int, out: Path, schedule: str,
-               preset: str = "paper") -> dict:
+               preset: str = "paper", options: dict | None = None) -> dict:
     import numpy as np
 
     from egs_bench.eval.ate import ate_from_files
@@ -105,7 +131,7 @@ def run_method(method: str, seq: Sequence, frames: int, out: Path, schedule: str
     from egs_bench.runs.registry import get_method, with_options
 
     t = time.perf_counter()
-    run = with_options(get_method(method), {"mapping_mode": schedule}).run(
+    run = with_options(get_method(method), {**(options or {}), "mapping_mode": schedule}).run(
         seq, out, preset=preset, device="cuda", seed=0, max_frames=frames, progress=False)
     wall = time.perf_counter() - t
     timing = json.loads((run.path / "timing.json").read_text())
@@ -126,7 +152,7 @@ def run_method(method: str, seq: Sequence, frames: int, out: Path, schedule: str
             "fps_after_frame0": (len(per_frame) - 1) / sum(per_frame[1:])
             if len(per_frame) > 1 else None,
             "ate_rmse_cm": 100 * ate.rmse, "psnr_db": float(np.mean(psnrs)) if psnrs else None,
-            "preset": preset, "compile_s": timing.get("compile_s"),
+            "preset": preset, "options": options or {}, "compile_s": timing.get("compile_s"),
             "work_per_frame_after_frame0": (stats.get("work") or {}).get("per_frame_after_init")}
 
 
@@ -171,7 +197,7 @@ def markdown_table(report: dict) -> str:
     env, seq = report.get("environment", {}), report.get("sequence", {})
     lines = [f"{env.get('device', '?')}, torch {env.get('torch', '?')}, gsplat "
              f"{env.get('gsplat', '?')}; {seq.get('name', '?')} {seq.get('resolution', '')}, "
-             f"first {seq.get('frames_used', '?')} frames, paper budget, seed 0, "
+             f"first {seq.get('frames_used', '?')} frames, seed 0, "
              f"{report.get('date', '')}", "",
              "| method | preset | mapping | FPS | FPS after frame 0 | frame 0 s | per-frame s "
              "(median) | tracking iterations / frame | Mpixels / frame | ATE cm | PSNR dB |",
@@ -201,8 +227,9 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--seq", default="office1", help="448x256 built-in sequence (or folder)")
     ap.add_argument("--frames", type=int, default=40, help="frames per run")
-    ap.add_argument("--runs", default="paper:sequential,cpu:sequential,paper:concurrent",
-                    help="PRESET[:MAPPING_MODE] entries to run each method with")
+    ap.add_argument("--runs", default=DEFAULT_RUNS,
+                    help="PRESET[@SETTING][:MAPPING_MODE] entries to run each method with "
+                         "(SETTING: one of benchmarks/sweeps/paper_levers.yaml)")
     ap.add_argument("--profile-views", type=int, default=2,
                     help="keyframes of the profiled mapping iteration (0: no profile)")
     ap.add_argument("--until-s", type=float, default=540.0,
@@ -249,10 +276,9 @@ def main(argv: list[str] | None = None) -> int:
         for entry in args.runs.split(","):
             import shutil
 
-            preset, _, schedule = entry.partition(":")
-            schedule = schedule or "sequential"
-            key = f"{method}/{preset}/{schedule}"
-            out = args.out / method / preset / schedule
+            label, preset, schedule, options = parse_run_entry(entry)
+            key = f"{method}/{label}/{schedule}"
+            out = args.out / method / label / schedule
             if time.perf_counter() - t_check > args.until_s:
                 report["runs"][key] = {"skipped": f"past --until-s {args.until_s:.0f} s"}
                 print(f"[4/5] {key}: not run (past --until-s)", flush=True)
@@ -263,7 +289,8 @@ def main(argv: list[str] | None = None) -> int:
                                      "choose another --out")
                 shutil.rmtree(out)  # a run folder of an earlier check
             with _timed(report, f"run_{method}_{schedule}"):
-                report["runs"][key] = r = run_method(method, seq, frames, out, schedule, preset)
+                report["runs"][key] = r = run_method(method, seq, frames, out, schedule, preset,
+                                                         options)
             print(f"[4/5] {key}: {r['fps']:.2f} FPS over {frames} frames "
                   f"({r['fps_after_frame0']:.2f} after frame 0; frame 0 {r['frame0_s']:.1f} s), "
                   f"ATE {r['ate_rmse_cm']:.2f} cm, PSNR {r['psnr_db']:.2f} dB, "

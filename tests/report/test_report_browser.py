@@ -286,7 +286,7 @@ def test_run_view_matches_render_map(sweep_out: Path, chromium: Any, tmp_path: P
     chromium.find_element(By.CSS_SELECTOR, "button.egs-view-fly").click()
     ActionChains(chromium).move_to_element(canvas).click().key_down("w").pause(0.5) \
         .key_up("w").perform()
-    step = np.array(chromium.execute_script(position)) - before
+    step = np.array(chromium.execute_script(camera_position)) - before
     forward = traj.poses[0][:3, 2]
     assert np.linalg.norm(step) > 0.05 and step @ forward > 0.9 * np.linalg.norm(step)
     chromium.find_element(By.CSS_SELECTOR, "button.egs-view-orbit").click()
