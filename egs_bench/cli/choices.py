@@ -4,7 +4,9 @@
 The evaluation protocol's choices are the library's own types (:mod:`egs_bench.eval.protocols`
 imports nothing heavy); each other one mirrors a constant of a library module that the CLI does
 not import before a command runs. The library still checks its own arguments for Python
-callers; ``tests/cli/test_cli_edges.py`` checks that the two agree.
+callers; ``tests/cli/test_cli_edges.py`` checks that the two agree. ``import-run --from`` is
+not here: its choices are the systems of :mod:`egs_bench.interop.registry`, built-in or
+registered, read when the command runs (``cli/eval_cmds.py``).
 """
 
 from __future__ import annotations
@@ -23,8 +25,6 @@ DeltaUnit = Literal["f", "frames", "m", "meters", "d", "deg", "degrees", "r", "r
 BoardFormat = Literal["md", "latex", "csv", "csv-summary"]  # eval.leaderboard.FORMATS
 BoardLayout = Literal["sequence", "method"]  # eval.leaderboard.LAYOUTS
 TableWidth = Literal["auto", "natural", "column", "page"]  # eval.tables.WIDTHS
-# interop.registry.IMPORT_FORMATS
-ImportFormat = Literal["tum", "orbslam2", "photoslam", "monogs", "rampvo"]
 QuaternionOrder = Literal["rampvo", "wxyz"]  # interop.rampvo.QUATERNION_ORDERS
 ExportFormat = Literal["tum-rgbd", "replica", "eds"]  # interop.export.FORMATS
 Retime = Literal["auto", "never", "always"]

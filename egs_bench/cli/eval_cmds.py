@@ -21,7 +21,6 @@ from egs_bench.cli.choices import (
     BoardFormat,
     BoardLayout,
     DeltaUnit,
-    ImportFormat,
     LpipsNet,
     PoseRelation,
     Protocol,
@@ -355,18 +354,59 @@ def plot_cmd(
         _out.print(f"wrote {path}")
 
 
-@app.command("import-run")
+def _known_import_format(value: str) -> str:
+    """``--from``'s check: one of the registry's import formats, read when the command parses
+    (the registry is not imported with the CLI, and a system registered later is known)."""
+    from egs_bench.interop.registry import import_formats
+
+    formats = import_formats()
+    if value not in formats:
+        raise typer.BadParameter(f"{value!r} is not one of {', '.join(map(repr, formats))}.")
+    return value
+
+
+def _import_format_completion(incomplete: str) -> list[str]:
+    from egs_bench.interop.registry import import_formats
+
+    return [f for f in import_formats() if f.startswith(incomplete)]
+
+
+class _ImportRunCommand(TyperCommand):
+    """``import-run``, whose ``--from`` and ``--render-ply`` help list the systems of
+    :mod:`egs_bench.interop.registry`, filled in when the command shows its help or parses
+    its arguments: importing the CLI does not import the registry (its systems' readers load
+    scipy), and a system registered after the CLI was imported is listed too."""
+
+    def get_params(self, ctx: Context) -> list[Any]:
+        from egs_bench.interop.registry import TUM, import_formats, importable_systems
+
+        params: list[Any] = super().get_params(ctx)
+        systems = importable_systems()
+        for param in params:
+            if param.name == "fmt":
+                listed = [f"{s.key} ({s.output})" if s.output else s.key for s in systems]
+                param.help = f"What SOURCE is: {TUM} (a TUM trajectory), {', '.join(listed)}."
+                param.metavar = f"[{'|'.join(import_formats())}]"
+            elif param.name == "render_ply":
+                drawn = [s for s in systems if s.gaussian_map is not None]
+                param.help = (
+                    f"--from {' / '.join(s.key for s in drawn)}: render its Gaussian map "
+                    f"({', '.join(dict.fromkeys(str(s.gaussian_map) for s in drawn))}) at the "
+                    "imported poses." if drawn else "Render the system's Gaussian map (no "
+                    "system of the registry writes one).")
+        return params
+
+
+@app.command("import-run", cls=_ImportRunCommand)
 def import_run_cmd(
     source: Path = typer.Argument(..., help="External output: a TUM file, or the file / folder "
                                             "the system wrote (see --from)."),
     old_out: Path | None = typer.Argument(None, hidden=True),  # deprecated: the output positional
     out: Path | None = typer.Option(None, "--out", "-o",
                                     help=f"Run folder to create {OUT_REQUIRED}."),
-    fmt: ImportFormat = typer.Option("tum", "--from",
-                            help="What SOURCE is: tum, orbslam2 (CameraTrajectory.txt / "
-                                 "KeyFrameTrajectory.txt or their folder), photoslam (output "
-                                 "folder), monogs (result folder or trj_final.json), rampvo "
-                                 "(stamped_traj_estimate.txt)."),
+    # the help and the choices are the registry's (_ImportRunCommand, _known_import_format)
+    fmt: str = typer.Option("tum", "--from", callback=_known_import_format,
+                            autocompletion=_import_format_completion),
     export_dir: Path | None = typer.Option(None, "--export",
                                            help="The egs-bench export the system ran on (maps "
                                                 "its stamps / frame ids to sequence frames)."),
@@ -383,9 +423,7 @@ def import_run_cmd(
                                                  "sequence folder)."),
     renders: Path | None = typer.Option(None, "--renders",
                                         help="Folder of renders named <frame index>.png."),
-    render_ply: bool = typer.Option(False, "--render-ply",
-                                    help="--from monogs: render its point_cloud.ply at the "
-                                         "imported poses."),
+    render_ply: bool = typer.Option(False, "--render-ply"),  # help: _ImportRunCommand
     quaternion: QuaternionOrder = typer.Option("rampvo", "--quaternion",
                                    help="--from rampvo: quaternion columns as RampVO writes "
                                         "them (rampvo: qy qz qw qx) or wxyz."),

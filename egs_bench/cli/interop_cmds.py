@@ -4,22 +4,43 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import typer
+from typer._click import Context
+from typer.core import TyperCommand
 
 from egs_bench.cli.app import OUT_REQUIRED, QUIET, app, output_path
 from egs_bench.cli.choices import ExportFormat, Retime
 
 
-@app.command("export")
+class _ExportCommand(TyperCommand):
+    """``export``, whose ``--format`` help names the systems that read each layout
+    (:func:`egs_bench.interop.registry.systems_reading`), filled in when the command shows its
+    help or parses its arguments: importing the CLI does not import the registry, and a
+    system registered after the CLI was imported is named too."""
+
+    def get_params(self, ctx: Context) -> list[Any]:
+        from egs_bench.interop.export import FORMATS
+        from egs_bench.interop.registry import systems_reading
+
+        params: list[Any] = super().get_params(ctx)
+        for param in params:
+            if param.name == "fmt":
+                readers = {layout: ", ".join(s.title for s in systems_reading(layout))
+                           for layout in FORMATS}
+                param.help = ", ".join(f"{layout} ({titles})" if titles else layout
+                                       for layout, titles in readers.items()) + "."
+        return params
+
+
+@app.command("export", cls=_ExportCommand)
 def export_cmd(
     seq: str = typer.Argument(..., help="Sequence folder, or a name under $EGS_BENCH_DATA."),
     old_out: Path | None = typer.Argument(None, hidden=True),  # deprecated: the output positional
     out: Path | None = typer.Option(None, "--out", "-o",
                                     help=f"Export folder to create {OUT_REQUIRED}."),
-    fmt: ExportFormat = typer.Option(..., "--format", "-f",
-                            help="tum-rgbd (MonoGS, ORB-SLAM2, Photo-SLAM), replica "
-                                 "(NICE-SLAM-style loaders, MonoGS), eds (RampVO)."),
+    fmt: ExportFormat = typer.Option(..., "--format", "-f"),  # help: _ExportCommand
     retime: Retime = typer.Option("auto", "--retime",
                                help="tum-rgbd time stamps: auto (rewrite to t0 + j/30 s only "
                                     "if frames are <= 1/32 s apart, which MonoGS drops), never, "

@@ -10,7 +10,9 @@ trajectories are recorded in ``run.yaml`` (``estimate: {poses, renders, scale_fr
 reported by evaluation (e.g. "ATE over 9 of 40 frames: the estimate holds keyframes poses
 only"). A keyframe file a system writes when it shuts down (MonoGS ``trj_final.json``, ORB-SLAM's
 ``KeyFrameTrajectory*``) also records ``frames_processed``: the frames the system read, not the
-last keyframe's index + 1, so a protocol that scores keyframes sees a complete run.
+last keyframe's index + 1, so a protocol that scores keyframes sees a complete run. Which
+systems write such a file, and which write a Gaussian map that the import can render, is
+declared by each system (:class:`~egs_bench.interop.systems.ExternalSystem`).
 
 Validation at import, as ``egs-bench eval`` would: the sequence folder opens, the estimate has
 at least 3 poses matching the ground truth within 0.01 s, and every render decodes and has the
@@ -31,12 +33,12 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from egs_bench.errors import InputError
+from egs_bench.errors import ConfigError, InputError
 from egs_bench.fileio import atomic_dir, write_text_atomic
 from egs_bench.geometry import Intrinsics, Trajectory, read_tum
 from egs_bench.images import read_ldr_image
 from egs_bench.interop.export import read_export_index
-from egs_bench.interop.registry import importable_system
+from egs_bench.interop.registry import importable_system, importable_systems
 from egs_bench.interop.systems import ExternalEstimate, ExternalSystem, ImportOptions
 from egs_bench.outputs import prepare_output
 from egs_bench.runs.folder import RunFolder
@@ -260,8 +262,8 @@ def _loaded(system: ExternalSystem, frames: _Frames) -> np.ndarray:
 def _frames_processed(est: ExternalEstimate, frames: _Frames, system: ExternalSystem
                       ) -> int | None:
     """Leading sequence frames an external system read, when its keyframe file says it ran to
-    the end (``written_at_end``: MonoGS ``trj_final.json``, ORB-SLAM's keyframe file, both
-    written at shutdown); None otherwise (evaluation then counts up to the last pose)."""
+    the end (the estimate's ``written_at_end``, which a system's reader sets for a file it
+    writes at shutdown); None otherwise (evaluation then counts up to the last pose)."""
     if est.poses_kind != "keyframes" or not est.written_at_end:
         return None
     loaded = _loaded(system, frames) if est.uids is not None else np.arange(len(frames.frame))
@@ -290,8 +292,9 @@ def _to_export_frames(est: ExternalEstimate, frames: _Frames, source: Path,
 
 
 def _render_ply(ply: Path, poses_wc: np.ndarray, intrinsics: Intrinsics) -> list[np.ndarray]:
-    """Render a 3DGS map at each pose; colours are taken as display (sRGB-encoded) values, as
-    MonoGS trains them on the 8-bit frames (no transfer curve applied), clipped to [0, 1]."""
+    """Render a 3DGS map at each pose ([N, 4, 4] camera-to-world) into [H, W, 3] uint8
+    images; colours are taken as display (sRGB-encoded) values, as a system trains them on the
+    8-bit frames it reads (no transfer curve applied), clipped to [0, 1]."""
     import torch
 
     from egs_bench.render.ply import load_ply
@@ -329,16 +332,18 @@ def import_external_run(
     Args:
         source: the system's output file or folder.
         out_dir: run folder to create.
-        fmt: the system's key in :mod:`egs_bench.interop.registry` (``orbslam2``,
-            ``photoslam``, ``monogs``, ``rampvo``, or a registered one; ``tum``: use
-            :func:`import_tum_run`).
+        fmt: the system's key, one of
+            :func:`egs_bench.interop.registry.import_formats` but ``tum`` (which
+            :func:`import_tum_run` reads).
         export_dir: the ``egs-bench export`` folder the system ran on (maps its stamps / frame
             uids back to sequence frames; names the sequence).
         method: leaderboard name (default: the system's name).
         sequence_name: leaderboard column (default: the exported sequence's name).
         sequence_path: the sequence folder (default: the one the export came from).
         renders_dir: extra renders ``<frame index>.png`` (e.g. from a patched system).
-        render_ply: MonoGS: render its ``point_cloud.ply`` at the imported poses.
+        render_ply: render the system's Gaussian map
+            (:attr:`~egs_bench.interop.systems.ExternalSystem.gaussian_map`) at the imported
+            poses.
         quaternion: RampVO's quaternion columns: ``rampvo`` (as its code writes them) or
             ``wxyz``.
         overwrite: replace an existing run folder.
@@ -351,6 +356,10 @@ def import_external_run(
 
     system = importable_system(fmt)
     assert system.read is not None  # importable_system returns a system with a reader
+    if render_ply and system.gaussian_map is None:
+        drawn = [s.key for s in importable_systems() if s.gaussian_map is not None]
+        raise ConfigError(f"--render-ply: {system.title} writes no Gaussian map (systems that "
+                          f"do: {', '.join(drawn) or 'none'})")
     source = Path(source)
     est = system.read(source, ImportOptions(quaternion=quaternion))
     if sequence_path is None:
@@ -382,8 +391,8 @@ def import_external_run(
         renders.update(_renders_in(renders_dir))
     if render_ply:
         if est.ply is None:
-            raise InputError(source, "no point_cloud/final/point_cloud.ply to render "
-                                     "(--render-ply needs a MonoGS result folder)")
+            raise InputError(source, f"no {system.gaussian_map} to render (--render-ply "
+                                     f"needs a {system.title} output folder that holds it)")
         for f, rendered in zip(seq_frames, _render_ply(est.ply, poses, seq.intrinsics),
                                strict=True):
             renders[int(f)] = rendered

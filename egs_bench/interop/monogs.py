@@ -39,6 +39,8 @@ from egs_bench.interop.systems import (
 MONOGS_MIN_GAP_S = 1.0 / 32.0
 #: MonoGS' ``Dataset.type`` for each export layout it reads
 DATASET_TYPES = {"tum-rgbd": "tum", "replica": "replica"}
+#: the Gaussian map in a MonoGS result folder
+GAUSSIAN_MAP = "point_cloud/final/point_cloud.ply"
 
 
 def monogs_config(cam: Intrinsics, dataset_path: str, *, dataset_type: str, depth_scale: float,
@@ -148,7 +150,7 @@ def read_monogs(source: str | Path) -> ExternalEstimate:
                     est.reported[name] = json.loads(f.read_text())
                 except json.JSONDecodeError as exc:
                     raise InputError(f, f"not valid JSON ({exc})") from None
-        ply = folder / "point_cloud" / "final" / "point_cloud.ply"
+        ply = folder / GAUSSIAN_MAP
         est.ply = ply if ply.is_file() else None
     return est
 
@@ -167,5 +169,6 @@ def loaded_frames(layout: str | None, stamps_s: np.ndarray) -> np.ndarray:
 
 SYSTEM = ExternalSystem(
     key="monogs", title="MonoGS", read=_read, loaded_frames=loaded_frames,
+    output="result folder or trj_final.json", gaussian_map=GAUSSIAN_MAP,
     camera_files={"tum-rgbd": CameraFile("monogs_rgbd.yaml", _config_file),
                   "replica": CameraFile("monogs_replica.yaml", _config_file)})

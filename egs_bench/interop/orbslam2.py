@@ -88,5 +88,6 @@ def _read(source: Path, options: ImportOptions) -> ExternalEstimate:
 
 SYSTEM = ExternalSystem(
     key="orbslam2", title="ORB-SLAM2", read=_read,
+    output="CameraTrajectory.txt / KeyFrameTrajectory.txt or their folder",
     camera_files={"tum-rgbd": CameraFile("orbslam2_rgbd.yaml",
                                           orb_settings_file(orbslam2_settings))})

@@ -100,6 +100,6 @@ def _read(source: Path, options: ImportOptions) -> ExternalEstimate:
 
 
 SYSTEM = ExternalSystem(
-    key="photoslam", title="Photo-SLAM", read=_read,
+    key="photoslam", title="Photo-SLAM", read=_read, output="output folder",
     camera_files={"tum-rgbd": CameraFile("photoslam_rgbd.yaml",
                                           orb_settings_file(orbslam3_settings))})

@@ -83,4 +83,5 @@ def _read(source: Path, options: ImportOptions) -> ExternalEstimate:
 
 
 SYSTEM = ExternalSystem(key="rampvo", title="RampVO", read=_read,
+                        output="stamped_traj_estimate.txt",
                         camera_files={"eds": CameraFile("K.yaml", _k_file)})

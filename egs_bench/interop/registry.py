@@ -4,7 +4,10 @@ A new system is one module (``interop/<system>.py``, defining its reader and cam
 ``SYSTEM = ExternalSystem(...)``, see :mod:`egs_bench.interop.systems`) plus one entry in
 :data:`SYSTEMS` (or, from outside the package, one :func:`register_system` call). Exports write
 the camera files of every system that reads their layout, in this order; ``import-run --from
-KEY`` reads with the system's reader.
+KEY`` reads with the system's reader, and the command line lists every system here, the
+registered ones included, in its choices and help (read when a command needs them, so that
+importing the CLI does not import this module). There is no entry-point group for systems:
+a package adds its system by calling :func:`register_system` before the command runs.
 """
 
 from __future__ import annotations
@@ -23,8 +26,6 @@ SYSTEMS: tuple[ExternalSystem, ...] = (
 )
 #: ``import-run --from`` for a plain TUM trajectory (no system's own files)
 TUM = "tum"
-#: what ``import-run --from`` reads: a TUM trajectory and the outputs of the built-in systems
-IMPORT_FORMATS = (TUM, *(s.key for s in SYSTEMS if s.read is not None))
 
 _REGISTERED: dict[str, ExternalSystem] = {}
 
@@ -46,6 +47,17 @@ def all_systems() -> tuple[ExternalSystem, ...]:
     return SYSTEMS + tuple(_REGISTERED.values())
 
 
+def importable_systems() -> tuple[ExternalSystem, ...]:
+    """The systems ``import-run --from KEY`` reads (those with a reader), in registry order."""
+    return tuple(s for s in all_systems() if s.read is not None)
+
+
+def import_formats() -> tuple[str, ...]:
+    """What ``import-run --from`` takes: ``tum``, then the key of every system with a reader,
+    built-in then registered, in registry order."""
+    return (TUM, *(s.key for s in importable_systems()))
+
+
 def systems_reading(layout: str) -> list[ExternalSystem]:
     """The systems with a camera file for the export ``layout``, in registry order."""
     return [s for s in all_systems() if layout in s.camera_files]
@@ -58,8 +70,8 @@ def importable_system(key: str) -> ExternalSystem:
     Raises:
         ConfigError: no system of that key has a reader.
     """
-    for system in all_systems():
-        if system.key == key and system.read is not None:
+    for system in importable_systems():
+        if system.key == key:
             return system
-    known = [*IMPORT_FORMATS, *(s.key for s in _REGISTERED.values() if s.read is not None)]
-    raise ConfigError(f"unknown import format {key!r}; choose one of {', '.join(known)}")
+    raise ConfigError(f"unknown import format {key!r}; choose one of "
+                      f"{', '.join(import_formats())}")

@@ -136,6 +136,11 @@ class ExternalSystem:
         loaded_frames: for a system whose output names frames by uid: the export frames it
             loads, which the uids index (``(export layout, export time stamps [N] s) ->
             indices``); None: every frame.
+        output: what ``import-run SOURCE`` takes as its output (files or a folder), as the
+            ``--from`` help lists it; empty: the help shows the key alone.
+        gaussian_map: the Gaussian map (3DGS ``.ply``) its output folder may hold, as a path
+            in that folder, which ``--render-ply`` renders at the imported poses (its reader
+            sets :attr:`ExternalEstimate.ply` when it is there); None: it writes none.
     """
 
     key: str
@@ -143,3 +148,5 @@ class ExternalSystem:
     read: Callable[[Path, ImportOptions], ExternalEstimate] | None = None
     camera_files: Mapping[str, CameraFile] = field(default_factory=dict)
     loaded_frames: Callable[[str | None, np.ndarray], np.ndarray] | None = None
+    output: str = ""
+    gaussian_map: str | None = None

@@ -239,7 +239,6 @@ def test_cli_choices_match_the_library() -> None:
     from egs_bench.experiments.sweep import BACKENDS
     from egs_bench.interop.export import FORMATS as EXPORT_FORMATS
     from egs_bench.interop.rampvo import QUATERNION_ORDERS
-    from egs_bench.interop.registry import IMPORT_FORMATS
     from egs_bench.recordings.enslam import FRAME_SOURCES
     from egs_bench.recordings.folders import UNIT_TO_US
     from egs_bench.slam.config import PRESETS
@@ -249,7 +248,7 @@ def test_cli_choices_match_the_library() -> None:
              (choices.Alignment, ALIGNMENTS), (choices.PoseRelation, RELATIONS),
              (choices.DeltaUnit, DELTA_UNITS), (choices.LpipsNet, NETS),
              (choices.BoardFormat, FORMATS), (choices.BoardLayout, LAYOUTS),
-             (choices.TableWidth, WIDTHS), (choices.ImportFormat, IMPORT_FORMATS),
+             (choices.TableWidth, WIDTHS),
              (choices.QuaternionOrder, QUATERNION_ORDERS), (choices.ExportFormat, EXPORT_FORMATS),
              (choices.MapColors, COLOR_MODES), (choices.SweepBackend, BACKENDS),
              (choices.Interpolator, INTERPOLATORS), (choices.TimesUnit, UNIT_TO_US),

@@ -1,6 +1,7 @@
 """The extending guide's external-system section runs as written: a system described by one
 ``ExternalSystem`` and registered once gets its camera file in an export of the layout it
-reads, and its output imports as a run folder that evaluation scores."""
+reads, and its output imports as a run folder that evaluation scores, from Python and through
+the command line, which lists it."""
 
 from __future__ import annotations
 
@@ -68,7 +69,7 @@ def test_its_output_imports_as_a_run_that_evaluation_scores(
         guide_run: tuple[dict[str, Any], Path, str]) -> None:
     namespace, folder, printed = guide_run
     run = namespace["toy_run"]
-    assert printed.splitlines()[1:] == ["ToySLAM all", "0.0"]
+    assert printed.splitlines()[1:3] == ["ToySLAM all", "0.0"]
     assert run.read_status().state == "done" and run.method == "ToySLAM"
     assert run.read_config()["format"] == "toyslam"
     truth = np.loadtxt(folder / "exports" / "my_wall" / "groundtruth.txt", ndmin=2)
@@ -77,6 +78,35 @@ def test_its_output_imports_as_a_run_that_evaluation_scores(
     # mapped back onto the sequence's own stamps (the export kept them: frames 33 ms apart)
     np.testing.assert_allclose(estimate.timestamps, truth[:, 0], atol=1e-6)
     assert namespace["toy_metrics"]["ate"]["rmse_m"] < 1e-6
+
+
+def test_the_command_line_imports_it_with_from_its_key(
+        guide_run: tuple[dict[str, Any], Path, str]) -> None:
+    namespace, folder, printed = guide_run
+    assert namespace["code"] == 0
+    assert printed.splitlines()[3:] == [
+        f"imported ToySLAM on my-wall into {Path('runs/toyslam-cli')} (poses: all, renders: "
+        "none)", "0"]
+    from egs_bench.runs.folder import RunFolder
+
+    run = RunFolder.open(folder / "runs" / "toyslam-cli")
+    assert run.method == "ToySLAM" and run.read_config()["format"] == "toyslam"
+    np.testing.assert_allclose(run.read_trajectory().poses,
+                               namespace["toy_run"].read_trajectory().poses)
+
+
+def test_the_command_line_lists_it_in_the_help_and_the_errors(
+        guide_run: tuple[dict[str, Any], Path, str], capsys: pytest.CaptureFixture[str]) -> None:
+    from egs_bench.cli import main
+
+    assert main(["import-run", "--help"]) == 0
+    help_text = " ".join(capsys.readouterr().out.split())
+    assert "--from [tum|monogs|orbslam2|photoslam|rampvo|toyslam]" in help_text
+    assert main(["export", "--help"]) == 0
+    assert "tum-rgbd (MonoGS, ORB-SLAM2, Photo-SLAM, ToySLAM)" in " ".join(
+        capsys.readouterr().out.split())
+    assert main(["import-run", "x", "-o", "y", "--from", "nosuchslam"]) == 2
+    assert "'rampvo', 'toyslam'." in capsys.readouterr().err
 
 
 def test_registering_is_refused_for_a_built_in_key() -> None:

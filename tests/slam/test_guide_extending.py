@@ -57,7 +57,7 @@ def guide_namespace(guide_folder: Path) -> Iterator[dict]:
 
 
 def test_the_guide_has_its_examples() -> None:
-    assert len(guide_code()) == 9
+    assert len(guide_code()) == 10
 
 
 def test_the_guides_keyframe_setting_is_an_option_with_its_range(
