@@ -32,6 +32,7 @@ _COMMAND_MODULES = (
     "eval_cmds",
     "render_cmds",
     "slam_cmds",
+    "config_cmds",
     "interop_cmds",
     "recording_cmds",
     "experiment_cmds",

@@ -106,7 +106,7 @@ PANELS: dict[str, tuple[str, ...]] = {
     "Sequences": ("info", "show", "make-synthetic", "list-scenes", "make-eventreplica",
                   "import-recording", "make-calib", "recording-presets", "import-enslam",
                   "export"),
-    "SLAM runs": ("run", "list", "list-methods", "demo", "import-run"),
+    "SLAM runs": ("run", "list", "list-methods", "config-reference", "demo", "import-run"),
     "Evaluation and reports": ("eval", "ate", "rpe", "compare-images", "leaderboard", "plot",
                                "report", "figure", "paper-tables"),
     "Experiments": ("sweep", "regress"),

@@ -50,14 +50,14 @@ def sweep_cmd(
                                      "debug to try the backend on this machine."),
 ) -> None:
     """Run (or resume) a sweep: methods x sequences x seeds x settings, one process per run."""
-    from egs_bench.experiments.spec import load_sweep, parse_shard
+    from egs_bench.experiments.spec import command_line_options, load_sweep, parse_shard
     from egs_bench.experiments.sweep import run_sweep
-    from egs_bench.slam.config import parse_overrides
 
     spec = load_sweep(sweep_file)
-    report = run_sweep(spec, out=out, extra_options=parse_overrides(options), backend=backend,
-                       shard=parse_shard(shard), force=force, retry_failed=retry_failed,
-                       jobs=jobs, threads_per_job=threads_per_job, cluster=cluster,
+    report = run_sweep(spec, out=out, extra_options=command_line_options(spec, options),
+                       backend=backend, shard=parse_shard(shard), force=force,
+                       retry_failed=retry_failed, jobs=jobs, threads_per_job=threads_per_job,
+                       cluster=cluster,
                        wait=not no_wait, dry_run=dry_run, status_only=status,
                        say=lambda m: _out.print(m, markup=False))
     typer.echo(report.summary_md, nl=False)

@@ -309,6 +309,40 @@ def typed_options(options: Mapping[str, Any], method: object = None) -> dict[str
     return parse_method_options(method, [f"{k}={json.dumps(v)}" for k, v in options.items()])
 
 
+def command_line_options(spec: SweepSpec, items: Sequence[str]) -> dict[str, Any]:
+    """``egs-bench sweep --set`` items, parsed by the rules of ``egs-bench run --set``
+    (:func:`egs_bench.slam.methods.parse_method_options`) against the groups of the sweep's
+    methods: a field that one method's components add (``keyframes.n``) is an option, as in
+    the file's ``set``, and each run then checks it against its own method (:func:`expand`).
+
+    Raises:
+        ConfigError: an item that no method of the sweep takes (the message for the first
+            method), or a value of the wrong type.
+    """
+    from egs_bench.runs.registry import get_method
+    from egs_bench.slam.methods import parse_method_options
+
+    found: list[object] = []
+    for method in spec.methods:
+        try:
+            found.append(get_method(method))
+        except ConfigError:
+            continue  # expand() names the sweep file with this error
+    out: dict[str, Any] = {}
+    for item in items:
+        first: ConfigError | None = None
+        for candidate in found or [None]:
+            try:
+                out.update(parse_method_options(candidate, [item]))
+                break
+            except ConfigError as exc:
+                first = first or exc
+        else:
+            assert first is not None
+            raise first
+    return out
+
+
 def _resolved_config(method: str, preset: str, options: Mapping[str, Any],
                      where: Path | str, meta: Mapping[str, Any] | None = None
                      ) -> dict[str, Any] | None:

@@ -27,12 +27,13 @@ from egs_bench.errors import ConfigError
 from egs_bench.render import GaussianMap
 from egs_bench.slam.config import GROUPS, KeyframeConfig, LossConfig
 from egs_bench.slam.context import SlamContext
+from egs_bench.slam.convergence import ConvergenceTest
 from egs_bench.slam.crf import CameraResponse
 from egs_bench.slam.frames import FrameObs, FrameState
 from egs_bench.slam.keyframes import KeyframeCandidate, MonoGSKeyframes
 from egs_bench.slam.loss_terms import LOSS_TERMS, LossTerm
 from egs_bench.slam.mapper import Mapper
-from egs_bench.slam.scheduling import MapRound
+from egs_bench.slam.scheduling import ConcurrentMapping, MapRound
 from egs_bench.slam.tracker import GradientTracker, TrackRequest, TrackResult
 
 
@@ -122,6 +123,12 @@ class MonoGSKeyframePolicy(MonoGSKeyframes):
 #: built-in class)
 ROLE_GROUPS = {"tracker": "tracking", "mapper": "mapping", "keyframes": "keyframes"}
 
+#: the built-in parts that every method uses (not factories of :class:`SlamComponents`): by
+#: role, the class and the group whose fields its ``Config`` (a base class of the group's
+#: built-in class) declares; recorded in ``config.yaml`` with the replaceable parts
+FIXED_PARTS: dict[str, tuple[type[ConvergenceTest] | type[ConcurrentMapping], str]] = {
+    "convergence": (ConvergenceTest, "tracking"), "schedule": (ConcurrentMapping, "mapping")}
+
 
 def import_path(obj: object) -> str:
     """``module:qualified.name`` of a class or function (as :func:`~egs_bench.runs.registry`
@@ -164,17 +171,27 @@ class SlamComponents:
 
     def record(self) -> dict[str, Any]:
         """What the run folder's ``config.yaml`` records of the parts: each factory's import
-        path and the group (and config class) it reads, and each loss term's name and the
-        import path of its value function."""
+        path and the group (and config class) it reads, the same for the convergence rule and
+        the mapping schedule (:data:`FIXED_PARTS`), and each loss term's name and the import
+        path of its value function."""
         classes = self.config_classes()
         out: dict[str, Any] = {
             role: {"target": import_path(getattr(self, role)), "config": group,
                    "config_class": import_path(classes[group])}
             for role, group in ROLE_GROUPS.items()}
+        out.update(fixed_parts_record())
         out["loss_terms"] = [{"name": term.name, "value": import_path(term.value)}
                              for term in self.loss_terms]
         out["loss_config_class"] = import_path(classes["loss"])
         return out
+
+
+def fixed_parts_record() -> dict[str, dict[str, str]]:
+    """The record of :data:`FIXED_PARTS`, as in :meth:`SlamComponents.record` (a
+    ``config.yaml`` written before they were recorded implies these)."""
+    return {role: {"target": import_path(part), "config": group,
+                   "config_class": import_path(part.Config)}
+            for role, (part, group) in FIXED_PARTS.items()}
 
 
 def loss_config_class(terms: tuple[LossTerm, ...]) -> type:

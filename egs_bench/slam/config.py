@@ -29,13 +29,14 @@ from dataclasses import dataclass, field
 from typing import Any, Literal
 
 from egs_bench.errors import ConfigError
-from egs_bench.slam.convergence import ConvergenceRule
 
 CrfKind = Literal["learnable", "srgb", "identity"]
 CrfInit = Literal["linear", "srgb"]
 MotionModel = Literal["constant-position", "constant-velocity"]
 Backend = Literal["auto", "numba", "reference", "gsplat"]
 MappingMode = Literal["sequential", "concurrent"]
+#: when tracking may stop before its iteration budget (:mod:`egs_bench.slam.convergence`)
+ConvergenceRule = Literal["fixed", "relative-step", "plateau", "net-motion"]
 InsertionRule = Literal["all", "uncovered"]
 
 
@@ -80,8 +81,23 @@ class LossConfig:
 
 
 @dataclass(frozen=True)
-class TrackingConfig:
-    """How a frame's exposure trajectory is predicted and estimated."""
+class ConvergenceConfig:
+    """What the convergence rule (:class:`~egs_bench.slam.convergence.ConvergenceTest`) reads:
+    when a frame may stop before its iteration budget. Part of the ``tracking`` group (its
+    fields are ``tracking.convergence*``), which the tracker that runs the rule reads."""
+
+    # "fixed" runs the budget (MonoGS's absolute step threshold aside), "relative-step" /
+    # "plateau" / "net-motion" stop once the step / the loss's improvement / the net motion
+    # has fallen below convergence_tolerance (relative) for convergence_patience iterations.
+    convergence: ConvergenceRule = "fixed"
+    convergence_tolerance: float = 0.1  # relative tolerance of the convergence rule
+    convergence_patience: int = 3       # iterations the rule must hold before a frame stops
+
+
+@dataclass(frozen=True)
+class TrackingConfig(ConvergenceConfig):
+    """How a frame's exposure trajectory is predicted and estimated (and, from
+    :class:`ConvergenceConfig`, when its estimation may stop)."""
 
     motion_model: MotionModel = "constant-velocity"  # how a frame's start pose is predicted
     # Tracking estimates T_tau only and places T_0 on the path from the previous frame's T_tau
@@ -98,13 +114,6 @@ class TrackingConfig:
     max_translation_jump: float = 0.5   # m between consecutive frames, else divergence
     max_rotation_jump: float = 0.6      # rad between consecutive frames, else divergence
     divergence_loss_factor: float = 20.0  # final loss > factor x running median -> divergence
-    # When a frame may stop before its iteration budget (egs_bench/slam/convergence.py):
-    # "fixed" runs the budget (MonoGS's absolute step threshold aside), "relative-step" /
-    # "plateau" stop once the step / the loss's improvement has fallen below
-    # convergence_tolerance (relative) for convergence_patience iterations.
-    convergence: ConvergenceRule = "fixed"
-    convergence_tolerance: float = 0.1  # relative tolerance of the convergence rule
-    convergence_patience: int = 3       # iterations the rule must hold before a frame stops
 
 
 @dataclass(frozen=True)
@@ -120,13 +129,22 @@ class KeyframeConfig:
 
 
 @dataclass(frozen=True)
-class MappingConfig:
-    """How the map (and keyframe poses, exposures, the CRF) are optimised."""
+class ScheduleConfig:
+    """What the mapping schedule (:mod:`egs_bench.slam.scheduling`) reads: when a keyframe's
+    mapping round runs. Part of the ``mapping`` group (``mapping.mapping_mode``); the size of
+    a concurrent slice is a compute budget (``budget.mapping_iters_per_frame``)."""
+
+    # "sequential": a keyframe's mapping round runs before the next frame is tracked;
+    # "concurrent": beside the next frames' tracking.
+    mapping_mode: MappingMode = "sequential"
+
+
+@dataclass(frozen=True)
+class MappingConfig(ScheduleConfig):
+    """How the map (and keyframe poses, exposures, the CRF) are optimised (and, from
+    :class:`ScheduleConfig`, when)."""
 
     refine_poses: bool = False          # refine the newest keyframes' trajectories in mapping
-    # "sequential": a keyframe's mapping round runs before the next frame is tracked;
-    # "concurrent": beside the next frames' tracking (egs_bench/slam/scheduling.py).
-    mapping_mode: MappingMode = "sequential"
     n_random_kfs: int = 2               # (paper, MonoGS) older keyframes added per iteration
     kf_pose_lr_scale: float = 0.5       # (MonoGS) keyframe pose lr = 0.5 x tracking lr
     prune_opacity: float = 0.1          # periodic pruning below this opacity

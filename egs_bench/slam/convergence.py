@@ -24,13 +24,14 @@ whole budget. The rules here are relative, so that they mean the same at both bu
 from __future__ import annotations
 
 import math
-from typing import Literal
+from typing import ClassVar
 
 import numpy as np
 
 from egs_bench.geometry.lie import so3_log
+from egs_bench.slam.config import ConvergenceConfig, ConvergenceRule
 
-ConvergenceRule = Literal["fixed", "relative-step", "plateau", "net-motion"]
+__all__ = ["ConvergenceRule", "ConvergenceTest", "stop_iteration"]
 
 
 class ConvergenceTest:
@@ -43,6 +44,9 @@ class ConvergenceTest:
         patience: how many iterations the condition must hold / the window of the plateau.
     """
 
+    #: the settings it reads (``tracking.convergence*``; :meth:`from_config`)
+    Config: ClassVar[type[ConvergenceConfig]] = ConvergenceConfig
+
     def __init__(self, rule: ConvergenceRule, tolerance: float, patience: int) -> None:
         self.rule, self.tolerance, self.patience = rule, tolerance, patience
         self.largest_step = 0.0
@@ -50,6 +54,13 @@ class ConvergenceTest:
         self.best: list[float] = []  # running best loss after each iteration
         self.poses: list[np.ndarray] = []  # T_tau after each iteration (net-motion)
         self.path: list[float] = []  # |twist| of each iteration's T_tau step
+
+    @classmethod
+    def from_config(cls, config: ConvergenceConfig) -> ConvergenceTest:
+        """The test a frame runs under ``config`` (the ``tracking`` group, or any
+        :class:`~egs_bench.slam.config.ConvergenceConfig`)."""
+        return cls(config.convergence, config.convergence_tolerance,
+                   config.convergence_patience)
 
     def update(self, loss: float, step_norm: float, pose1_cw: np.ndarray | None = None) -> bool:
         """Record one iteration: its loss, its largest twist step and (``net-motion``) the

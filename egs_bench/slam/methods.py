@@ -135,7 +135,7 @@ def rerun(config_file: str | Path, out: str | Path | None = None, *,
     from egs_bench.runs.folder import CONFIG_FILE
     from egs_bench.runs.folder import RunFolder as Folder
     from egs_bench.runs.registry import get_method
-    from egs_bench.slam.components import SlamComponents
+    from egs_bench.slam.components import SlamComponents, fixed_parts_record
     from egs_bench.slam.config import SlamConfig
     from egs_bench.slam.runner import RunSettings, run_slam
 
@@ -160,6 +160,8 @@ def rerun(config_file: str | Path, out: str | Path | None = None, *,
                           f"{found.name!r}")
     own = (found.components or SlamComponents()).record()
     recorded = stored.get("components")
+    if isinstance(recorded, dict):
+        recorded = {**fixed_parts_record(), **recorded}
     if recorded is not None and recorded != own:
         recorded = recorded if isinstance(recorded, dict) else {}
         differ = [f"{role} {_part_name(recorded.get(role))} (the method's: "

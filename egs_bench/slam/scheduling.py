@@ -21,11 +21,12 @@ import math
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Protocol
+from typing import ClassVar, Protocol
 
 import torch
 
 from egs_bench.render import GaussianMap
+from egs_bench.slam.config import ScheduleConfig
 from egs_bench.slam.crf import CameraResponse
 
 
@@ -82,6 +83,9 @@ class ConcurrentMapping:
             (the system recomputes the window's visibility there).
     """
 
+    #: the settings it reads (``mapping.mapping_mode``; :meth:`scheduled`)
+    Config: ClassVar[type[ScheduleConfig]] = ScheduleConfig
+
     def __init__(self, per_frame: int, device: torch.device,
                  on_round_closed: Callable[[MapRound], None]) -> None:
         self.per_frame = per_frame
@@ -91,6 +95,15 @@ class ConcurrentMapping:
         self._thread: threading.Thread | None = None
         self._error: BaseException | None = None
         self._stop = threading.Event()
+
+    @classmethod
+    def scheduled(cls, schedule: ScheduleConfig, per_frame: int, device: torch.device,
+                  on_round_closed: Callable[[MapRound], None]) -> ConcurrentMapping | None:
+        """The concurrent schedule when ``schedule`` (the ``mapping`` group) asks for it;
+        None for ``sequential`` (each round then runs at its keyframe)."""
+        if schedule.mapping_mode != "concurrent":
+            return None
+        return cls(per_frame, device, on_round_closed)
 
     @property
     def pending(self) -> bool:

@@ -118,11 +118,10 @@ class SlamSystem:
         check_part(self.tracker, Tracker, "tracker")
         check_part(self.mapper, MapOptimiser, "mapper")
         check_part(self.keyframe_policy, KeyframePolicy, "keyframe policy")
-        self.concurrent: ConcurrentMapping | None = None
-        if cfg.mapping.mapping_mode == "concurrent":
-            per_frame = iterations_per_frame(cfg.budget.mapping_iters, cfg.keyframes.interval,
-                                             cfg.budget.mapping_iters_per_frame)
-            self.concurrent = ConcurrentMapping(per_frame, self.device, self._round_closed)
+        per_frame = iterations_per_frame(cfg.budget.mapping_iters, cfg.keyframes.interval,
+                                         cfg.budget.mapping_iters_per_frame)
+        self.concurrent = ConcurrentMapping.scheduled(cfg.mapping, per_frame, self.device,
+                                                      self._round_closed)
         self._kfs: _Keyframes | None = None
 
     # -------------------------------------------------------------------------------- helpers

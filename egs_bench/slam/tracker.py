@@ -147,8 +147,7 @@ def track_frame(ctx: SlamContext, gmap: GaussianMap, crf: CameraResponse,
     m = len(fractions)
     loss_val, it, converged = math.inf, 0, False
     trace: list[tuple[float, float, np.ndarray]] = []
-    settled = ConvergenceTest(cfg.tracking.convergence, cfg.tracking.convergence_tolerance,
-                              cfg.tracking.convergence_patience)
+    settled = ConvergenceTest.from_config(cfg.tracking)
     for step_i in range(1, n_iters + 1):
         it = step_i
         # Map from the free twists (xi_0, xi_1 | xi_1) to the end twists (xi_0, xi_1) [12, 6n].

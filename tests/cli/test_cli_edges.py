@@ -55,6 +55,7 @@ def _bad_path_cases(tmp: Path, make: bool = True) -> dict[str, tuple[list[str | 
         "render-map": (["render-map", missing, "-o", out.with_suffix(".png")], missing),
         "export-map": (["export-map", missing, "-o", out.with_suffix(".ply")], missing),
         "render-demo": (["render-demo", "-o", folder], folder),
+        "config-reference": (["config-reference", "-o", folder], folder),
         "run": (["run", "-m", "monogs", "-s", missing], missing),
         "list": (["list", NASTY], NASTY),
         "export": (["export", missing, "-o", out, "-f", "tum-rgbd"], missing),
@@ -75,7 +76,7 @@ LISTINGS = {"list-scenes", "list-methods", "recording-presets"}
 WITHOUT_PATHS = {"warm-up"}  # tests/test_warmup.py runs it
 # the cases that are usage errors (exit 2): a choice not offered, a refused output; the others
 # name a missing input (a data error, exit 3)
-USAGE_ERROR_CASES = {"list", "render-demo"}
+USAGE_ERROR_CASES = {"list", "render-demo", "config-reference"}
 
 
 def test_every_command_has_a_bracket_case(tmp_path: Path) -> None:

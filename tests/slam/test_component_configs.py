@@ -128,6 +128,51 @@ def test_every_built_in_part_declares_the_ranged_frozen_config_of_its_group() ->
                 assert f"{group}.{f.name}" in RANGES, f"{group}.{f.name} has no range"
 
 
+def test_the_convergence_rule_and_the_schedule_read_their_own_recorded_configs() -> None:
+    """Each is built from its own frozen config class, a base of its group's class (the
+    spellings ``tracking.convergence*`` and ``mapping.mapping_mode`` stay), whose numbers have
+    ranges, and ``config.yaml`` records it with the replaceable parts."""
+    import torch
+
+    from egs_bench.slam.components import FIXED_PARTS
+    from egs_bench.slam.config import (
+        GROUPS,
+        RANGES,
+        ConvergenceConfig,
+        ScheduleConfig,
+        parse_overrides,
+    )
+    from egs_bench.slam.convergence import ConvergenceTest
+    from egs_bench.slam.scheduling import ConcurrentMapping
+
+    assert {role: (part.Config, group) for role, (part, group) in FIXED_PARTS.items()} == {
+        "convergence": (ConvergenceConfig, "tracking"), "schedule": (ScheduleConfig, "mapping")}
+    for part, group in FIXED_PARTS.values():
+        assert issubclass(GROUPS[group], part.Config)
+        with pytest.raises(dataclasses.FrozenInstanceError):
+            part.Config().__setattr__(dataclasses.fields(part.Config)[0].name, None)
+    assert {"tracking.convergence_tolerance", "tracking.convergence_patience"} <= set(RANGES)
+
+    cfg = cpu_preset().replace(**parse_overrides(
+        ["convergence=plateau", "tracking.convergence_patience=7", "mapping_mode=concurrent"]))
+    test = ConvergenceTest.from_config(cfg.validate().tracking)
+    assert (test.rule, test.tolerance, test.patience) == ("plateau", 0.1, 7)
+    scheduled = ConcurrentMapping.scheduled(cfg.mapping, 3, torch.device("cpu"), print)
+    assert scheduled is not None and scheduled.per_frame == 3
+    assert ConcurrentMapping.scheduled(cpu_preset().mapping, 3, torch.device("cpu"),
+                                       print) is None
+    with pytest.raises(ConfigError, match="tracking.convergence_patience must be in"):
+        cfg.replace(convergence_patience=0).validate()
+
+    record = METHOD.components.record() if METHOD.components else {}
+    assert record["convergence"] == {
+        "target": "egs_bench.slam.convergence:ConvergenceTest", "config": "tracking",
+        "config_class": "egs_bench.slam.config:ConvergenceConfig"}
+    assert record["schedule"] == {
+        "target": "egs_bench.slam.scheduling:ConcurrentMapping", "config": "mapping",
+        "config_class": "egs_bench.slam.config:ScheduleConfig"}
+
+
 def test_a_sweeps_settings_reach_a_plugins_fields() -> None:
     from egs_bench.experiments.spec import typed_options
 
@@ -257,13 +302,19 @@ def test_a_config_yaml_in_the_earlier_layouts_still_loads_and_reruns(
     stored = yaml.safe_load((first / "config.yaml").read_text())
     old = tmp_path / "old"
     shutil.copytree(first, old)
-    del stored["components"]
+    parts = stored.pop("components")
     (old / "config.yaml").write_text(yaml.safe_dump(stored))
     code, err = _run(["--config", str(old / "config.yaml"), "--out", str(tmp_path / "again"),
                       "--quiet"], capsys)
     assert code == 0, err
     assert (tmp_path / "again" / "trajectory.txt").read_bytes() == \
         (first / "trajectory.txt").read_bytes()
+    # recorded before the convergence rule and the schedule were: the built-in ones
+    del parts["convergence"], parts["schedule"]
+    (old / "config.yaml").write_text(yaml.safe_dump({**stored, "components": parts}))
+    code, err = _run(["--config", str(old / "config.yaml"), "--out", str(tmp_path / "again"),
+                      "--quiet", "--overwrite"], capsys)
+    assert code == 0, err
 
     cfg = SlamConfig.from_dict(stored["slam"])
     flat = {name: cfg.get(path) for name, path in ALIASES.items()}

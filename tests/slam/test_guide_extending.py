@@ -159,3 +159,27 @@ def test_the_guides_short_steps_leave_a_tenth_of_the_spread_after_alignment(
     expected = 0.1 * np.sqrt((spread ** 2).sum(1).mean())
     np.testing.assert_allclose(metrics["ate"]["rmse_m"], expected, rtol=1e-6)
     assert isinstance(get_method("short-steps"), guide_namespace["ShortSteps"])
+
+
+def test_the_guides_settings_are_on_the_configuration_reference(
+        guide_namespace: dict, capsys: pytest.CaptureFixture[str]) -> None:
+    """The page lists the fields the registered example's components add, with their
+    ranges; ``config-reference --method`` prints the method's whole reference."""
+    from egs_bench.cli import main
+    from egs_bench.slam.config_reference import render
+
+    own = render().split("## Components' own settings")[1].split("### `egs-depth-tv`")[1]
+    own = own.split("### ")[0]
+    rows = {line.split("|")[1].strip(): line for line in own.splitlines()
+            if line.startswith("| `")}
+    assert set(rows) == {"`keyframes.n`", "`loss.lambda_depth_tv`"}
+    assert "in [1, 1000]" in rows["`keyframes.n`"]
+    assert ">= 0" in rows["`loss.lambda_depth_tv`"]
+
+    assert main(["config-reference", "--method", "egs-depth-tv"]) == 0
+    page = capsys.readouterr().out
+    assert page.startswith("# Configuration reference of method `egs-depth-tv`")
+    keyframes = page.split("## `keyframes`")[1].split("## ")[0]
+    assert any(line.startswith("| `n`") and "in [1, 1000]" in line
+               for line in keyframes.splitlines())
+    assert "## Components' own settings" not in page
