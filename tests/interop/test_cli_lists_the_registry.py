@@ -1,6 +1,7 @@
 """The command line's view of the registry of external systems: ``import-run --from`` takes
-exactly the registry's import formats, a system registered from outside is listed while it
-is registered (and not after), and ``--render-ply`` names the system whose output is read."""
+exactly the registry's import formats, a system registered from outside is listed in the help
+and offered by shell completion while it is registered (and not after), and ``--render-ply``
+names the system whose output is read."""
 
 from __future__ import annotations
 
@@ -72,3 +73,13 @@ def test_render_ply_names_the_system_that_writes_no_gaussian_map(
     assert main(["import-run", "--help"]) == 0
     assert "--render-ply --from monogs: render its Gaussian map " \
            "(point_cloud/final/point_cloud.ply)" in " ".join(capsys.readouterr().out.split())
+
+
+def test_shell_completion_offers_a_registered_system(
+        plugin: ExternalSystem, monkeypatch: pytest.MonkeyPatch,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    monkeypatch.setenv("_EGS_BENCH_COMPLETE", "complete_bash")
+    monkeypatch.setenv("COMP_WORDS", "egs-bench import-run x --from p")
+    monkeypatch.setenv("COMP_CWORD", "4")
+    assert main([]) == 0
+    assert capsys.readouterr().out.split() == ["photoslam", "plugslam"]
