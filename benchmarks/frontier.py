@@ -8,7 +8,7 @@ a perturbation run of the same budget, ``runtime.perturbation``), else its prese
 row is the mean and spread over its seeds and perturbations (the noise floor).
 
     python benchmarks/frontier.py collect SWEEP_DIR... --out CSV [--overwrite]
-    python benchmarks/frontier.py table docs/notes/frontier_runs.csv
+    python benchmarks/frontier.py table docs/notes/frontier_runs.csv [--budgets b05,e1,...]
     python benchmarks/frontier.py figure docs/notes/frontier_runs.csv --out docs/images/frontier.png
 """
 
@@ -178,6 +178,7 @@ def main() -> None:
     c.add_argument("--overwrite", action="store_true", help="replace an existing --out file")
     t = sub.add_parser("table")
     t.add_argument("csv", type=Path)
+    t.add_argument("--budgets", help="comma-separated budgets to list (default: all)")
     f = sub.add_parser("figure")
     f.add_argument("csv", type=Path)
     f.add_argument("--out", type=Path, required=True)
@@ -188,7 +189,11 @@ def main() -> None:
     if args.cmd == "collect":
         print(f"{len(collect(args.roots, args.out))} runs -> {args.out}")
     elif args.cmd == "table":
-        print(table(read_rows(args.csv)))
+        rows = read_rows(args.csv)
+        if args.budgets:
+            keep = set(args.budgets.split(","))
+            rows = [row for row in rows if row["budget"] in keep]
+        print(table(rows))
     else:
         figure(read_rows(args.csv), args.out)
         print(f"figure -> {args.out}")

@@ -50,3 +50,23 @@ def test_an_existing_output_is_kept_without_overwrite(tmp_path: Path) -> None:
                            str(out), "--overwrite"], capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
     assert out.read_text().startswith("sequence,method,budget,seed,perturbation")
+
+
+def test_table_lists_only_the_budgets_asked_for(tmp_path: Path) -> None:
+    import csv
+    import subprocess
+    import sys
+
+    table = tmp_path / "runs.csv"
+    with table.open("w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=fr.COLUMNS)
+        writer.writeheader()
+        for row in (_row("e1", 0, 0, 1.0, 70.0), _row("b05", 0, 0, 3.0, 80.0),
+                    _row("d1", 0, 0, 2.0, 75.0)):
+            writer.writerow(row)
+    assert fr.__file__ is not None
+    done = subprocess.run([sys.executable, fr.__file__, "table", str(table), "--budgets",
+                           "e1,d1"], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    budgets = [line.split(" | ")[2] for line in done.stdout.splitlines()[2:]]
+    assert sorted(budgets) == ["d1", "e1"]
