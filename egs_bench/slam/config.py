@@ -202,6 +202,12 @@ class BudgetConfig:
     tracking_coarse_fraction: float = 0.0  # share of tracking iterations at that level
     mapping_coarse_scale: float = 1.0      # coarse level of mapping rounds (1.0 = off)
     mapping_coarse_fraction: float = 0.0   # share of mapping iterations at that level
+    # Exposure segments rendered at the coarse levels (None: budget.segments; a larger value
+    # than budget.segments means budget.segments). A blur of b pixels spans s b pixels at scale
+    # s, so fewer sub-poses describe it there: the coarse level keeps every (K / Kc)-th sub-pose
+    # and sums the events of the segments it merges (egs_bench/slam/levels.py).
+    tracking_coarse_segments: int | None = None
+    mapping_coarse_segments: int | None = None
     # Which pixels of a new keyframe may become Gaussians (1 in pcd_downsample of them):
     # "all" valid ones (MonoGS), or "uncovered": rendered opacity below insertion_alpha or
     # expected depth off by more than insertion_depth_error x the measured depth.
@@ -485,6 +491,8 @@ RANGES: dict[str, Bounds] = {
     **_each("budget", "tracking_coarse_fraction mapping_coarse_fraction insertion_alpha",
             _FRACTION),
     "budget.insertion_depth_error": _POSITIVE,
+    **_each("budget", "tracking_coarse_segments mapping_coarse_segments",
+            Bounds(low=1, high=64, null="budget.segments")),
     "runtime.perturbation": Bounds(low=0, high=1_000_000),
 }
 

@@ -12,6 +12,7 @@ from egs_bench.datasets.sequence_view import SequenceView
 from egs_bench.geometry import Intrinsics
 from egs_bench.slam.config import SlamConfig
 from egs_bench.slam.exposure import segment_edges_us, subpose_fractions
+from egs_bench.slam.levels import kept_subposes
 from egs_bench.slam.losses import depth_valid_mask, edge_mask, rgb_boundary_mask
 
 
@@ -129,19 +130,26 @@ def _observation(i: int, rgb: np.ndarray, depth: np.ndarray, exposure: _Exposure
 
 
 def coarse_observation(obs: FrameObs, cam: Intrinsics, cfg: SlamConfig,
-                       edge_blocks: int | None) -> FrameObs:
+                       edge_blocks: int | None, segments: int | None = None) -> FrameObs:
     """``obs`` at the lower resolution of ``cam``, made the way the internal resolution is
     made from the sequence's: colour and event maps area-averaged, depth averaged over valid
-    pixels only, the masks recomputed (the edge mask on a grid of ``edge_blocks``)."""
+    pixels only, the masks recomputed (the edge mask on a grid of ``edge_blocks``).
+
+    ``segments``: the exposure segments of the coarse level (None: those of ``obs``); with
+    fewer, it keeps the sub-poses :func:`~egs_bench.slam.levels.kept_subposes` picks, and each
+    of its event maps is the sum of the maps of the segments it spans."""
     w, h = cam.width, cam.height
     rgb = _area_resize(obs.rgb.cpu().numpy(), w, h)
     depth = _resize_depth(obs.depth.cpu().numpy(), w, h)
+    keep = kept_subposes(len(obs.fractions) - 1, segments)
     maps = None
     if obs.event_maps is not None:
         host = obs.event_maps.cpu().numpy()
-        maps = torch.from_numpy(np.stack([_area_resize(m, w, h) for m in host])).to(
+        merged = [host[a:b].sum(0) for a, b in zip(keep[:-1], keep[1:], strict=True)]
+        maps = torch.from_numpy(np.stack([_area_resize(m, w, h) for m in merged])).to(
             obs.event_maps.device)
-    return _observation(obs.index, rgb, depth, _Exposure(obs.fractions, maps, obs.n_events),
+    return _observation(obs.index, rgb, depth,
+                        _Exposure(obs.fractions[keep], maps, obs.n_events),
                         cfg, edge_blocks, obs.rgb.device)
 
 

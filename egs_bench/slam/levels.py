@@ -6,12 +6,20 @@ A coarse level of scale ``s`` renders ``s^2`` of the pixels, so those iterations
 are area averages of the internal ones, and the rasteriser's low-pass dilation is scaled to
 ``EPS2D s^2`` pixels^2 so that a Gaussian keeps its extent in the scene: with the dilation of
 0.3 coarse pixels^2 every Gaussian looked wider at the coarse level than at the fine one.
+
+A coarse level may also render fewer sub-poses of the blur model (``budget.*_coarse_segments``):
+a blur of ``b`` pixels spans ``s b`` pixels there, so ``Kc < K`` segments describe it. The
+level keeps ``Kc + 1`` of the ``K + 1`` sub-poses, the first and the last among them
+(:func:`kept_subposes`), and each of its segments holds the events of the fine segments it
+spans, so the event model stays exact: the log change over a merged segment is the sum of the
+changes over its parts.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy as np
 import torch
 
 from egs_bench.geometry import Intrinsics
@@ -54,3 +62,17 @@ def coarse_iterations(iterations: int, scale: float, fraction: float) -> int:
     if scale >= 1.0 or fraction <= 0.0:
         return 0
     return max(0, min(iterations - 1, int(round(iterations * fraction))))
+
+
+def kept_subposes(n_segments: int, coarse_segments: int | None) -> np.ndarray:
+    """Indices [Kc + 1] into the ``K + 1 = n_segments + 1`` sub-poses that a coarse level with
+    ``coarse_segments`` (Kc) segments renders: evenly spread, first and last always kept; every
+    index when ``coarse_segments`` is None or not below ``n_segments``.
+
+    >>> kept_subposes(3, 1).tolist(), kept_subposes(4, 2).tolist(), kept_subposes(3, 2).tolist()
+    ([0, 3], [0, 2, 4], [0, 2, 3])
+    """
+    if coarse_segments is None or coarse_segments >= n_segments:
+        return np.arange(n_segments + 1)
+    return np.floor(np.arange(coarse_segments + 1) * n_segments / coarse_segments
+                    + 0.5).astype(np.int64)

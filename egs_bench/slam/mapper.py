@@ -68,6 +68,7 @@ class Mapper:
         self.iteration = 0
         self.targets: dict[int, LossTargets] = {}
         self.coarse_targets: dict[int, LossTargets] = {}
+        self.coarse_fractions: dict[int, np.ndarray] = {}
         self.crf_opt = None
         crf_params = list(crf.parameters())
         if crf_params:
@@ -86,18 +87,28 @@ class Mapper:
             {"params": [g.quats], "lr": c.mapping.lr_quats},
         ], eps=1e-15, fused=True)
 
-    def _targets(self, k: int, obs: FrameObs, coarse: bool = False) -> LossTargets:
-        """Keyframe ``k``'s mapping targets at the internal level, or at the coarse level of
-        ``budget.mapping_coarse_scale``; prepared once per keyframe."""
-        cache = self.coarse_targets if coarse else self.targets
-        if k not in cache:
-            if coarse:
-                lvl = self.ctx.level(self.cfg.budget.mapping_coarse_scale)
-                obs = coarse_observation(obs, lvl.cam, self.cfg, lvl.edge_blocks)
-            cache[k] = prepare_targets(obs, self.cfg, self.ctx.theta, tracking=False,
-                                       use_events=self.cfg.method.event_mapping,
-                                       terms=self.ctx.loss_terms)
-        return cache[k]
+    def _targets(self, k: int, obs: FrameObs, coarse: bool = False
+                 ) -> tuple[LossTargets, np.ndarray]:
+        """Keyframe ``k``'s mapping targets and sub-pose fractions [M] at the internal level, or
+        at the coarse level of ``budget.mapping_coarse_scale`` (and its
+        ``mapping_coarse_segments``); prepared once per keyframe."""
+        budget = self.cfg.budget
+        if not coarse:
+            if k not in self.targets:
+                self.targets[k] = self._prepare(obs)
+            return self.targets[k], obs.fractions
+        if k not in self.coarse_targets:
+            lvl = self.ctx.level(budget.mapping_coarse_scale)
+            small = coarse_observation(obs, lvl.cam, self.cfg, lvl.edge_blocks,
+                                       budget.mapping_coarse_segments)
+            self.coarse_targets[k] = self._prepare(small)
+            self.coarse_fractions[k] = small.fractions
+        return self.coarse_targets[k], self.coarse_fractions[k]
+
+    def _prepare(self, obs: FrameObs) -> LossTargets:
+        return prepare_targets(obs, self.cfg, self.ctx.theta, tracking=False,
+                               use_events=self.cfg.method.event_mapping,
+                               terms=self.ctx.loss_terms)
 
     def _pick_views(self, window: list[int], all_keyframes: list[int]) -> list[int]:
         """The window plus ``n_random_kfs`` random older keyframes, optionally subsampled to
@@ -224,7 +235,7 @@ class Mapper:
             exp_ab = to_device(np.array([st.exp_a, st.exp_b]), like).view(1, 2) \
                 if cfg.method.exposure_compensation else None
             res = self.ctx.render(self.gmap, views, phase="refinement")
-            total = (blur_loss(res, self._targets(k, observations[k]), self.crf, exp_ab, cfg,
+            total = (blur_loss(res, self._targets(k, observations[k])[0], self.crf, exp_ab, cfg,
                                tracking=False, eps=self.ctx.eps)
                      + mapping_regulariser(self.gmap, cfg))
             opt.zero_grad(set_to_none=True)
@@ -305,9 +316,11 @@ class MappingRound:
         if self.report is not None and self.done % self.report_every == 0:
             self.report(self.done, self.iterations)
         views = mapper._pick_views(self.window, self.all_keyframes)
-        paths = {k: exposure_path(states[k].pose0_cw, states[k].pose1_cw,
-                                  observations[k].fractions) for k in views}
-        m = len(observations[views[0]].fractions)
+        coarse = self.done < self.n_coarse
+        level = [mapper._targets(k, observations[k], coarse) for k in views]
+        paths = {k: exposure_path(states[k].pose0_cw, states[k].pose1_cw, fractions)
+                 for k, (_, fractions) in zip(views, level, strict=True)}
+        m = len(level[0][1])
         exposure = np.array([[states[k].exp_a, states[k].exp_b] for k in views])
         flat = [paths[k][0].ravel() for k in views]
         packed = to_device(np.concatenate(flat + [exposure.ravel()]), mapper.gmap.means)
@@ -318,8 +331,7 @@ class MappingRound:
             viewmats.requires_grad_()
         if free_exposure and exp_ab is not None:
             exp_ab.requires_grad_()
-        coarse = self.done < self.n_coarse
-        targets = stack_targets([mapper._targets(k, observations[k], coarse) for k in views])
+        targets = stack_targets([t for t, _ in level])
         res = mapper.ctx.render(mapper.gmap, viewmats, phase="init" if initial else "mapping",
                                 scale=cfg.budget.mapping_coarse_scale if coarse else 1.0)
         total = blur_loss(res, targets, mapper.crf, exp_ab, cfg, tracking=False, eps=mapper.ctx.eps)

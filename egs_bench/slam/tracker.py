@@ -136,15 +136,18 @@ def track_frame(ctx: SlamContext, gmap: GaussianMap, crf: CameraResponse,
     coarse_scale = cfg.budget.tracking_coarse_scale
     n_coarse = coarse_iterations(n_iters, coarse_scale, cfg.budget.tracking_coarse_fraction)
     coarse_targets = None
+    coarse_fractions = fractions  # the coarse level's sub-poses (budget.tracking_coarse_segments)
     if n_coarse:
         lvl = ctx.level(coarse_scale)
+        coarse_obs = coarse_observation(obs, lvl.cam, cfg, lvl.edge_blocks,
+                                        cfg.budget.tracking_coarse_segments)
+        coarse_fractions = coarse_obs.fractions
         coarse_targets = prepare_targets(
-            coarse_observation(obs, lvl.cam, cfg, lvl.edge_blocks), cfg, ctx.theta,
-            tracking=True, use_events=cfg.method.event_tracking, terms=ctx.loss_terms)
+            coarse_obs, cfg, ctx.theta, tracking=True, use_events=cfg.method.event_tracking,
+            terms=ctx.loss_terms)
     curve = crf.frozen()
     scene = gmap.frozen()  # the map is fixed while tracking: activate it once
     like = obs.rgb  # dtype and device of the copies
-    m = len(fractions)
     loss_val, it, converged = math.inf, 0, False
     trace: list[tuple[float, float, np.ndarray]] = []
     settled = ConvergenceTest.from_config(cfg.tracking)
@@ -159,11 +162,13 @@ def track_frame(ctx: SlamContext, gmap: GaussianMap, crf: CameraResponse,
             select[:] = np.eye(12)
         else:
             select[6:] = np.eye(6)
-        views, jac = exposure_path(pose0, pose1, fractions)
+        coarse = step_i <= n_coarse
+        level_fractions = coarse_fractions if coarse else fractions
+        m = len(level_fractions)
+        views, jac = exposure_path(pose0, pose1, level_fractions)
         packed = to_device(np.r_[views.ravel(), exposure] if use_exposure else views.ravel(), like)
         viewmats = packed[:16 * m].view(m, 4, 4).requires_grad_()
         exp_ab = packed[16 * m:].view(1, 2).requires_grad_() if use_exposure else None
-        coarse = step_i <= n_coarse
         res = ctx.render(scene, viewmats, phase="tracking", scale=coarse_scale if coarse else 1.0)
         total = blur_loss(res, coarse_targets if coarse and coarse_targets else targets, curve,
                           exp_ab, cfg, tracking=True, eps=ctx.eps)

@@ -94,6 +94,25 @@ def test_coarse_mapping_renders_its_share_at_the_coarse_level(tiny_room: Path, t
         coarse * (W // 2) * (H // 2) + (init - coarse) * W * H)
 
 
+def test_coarse_levels_render_their_own_sub_poses(tiny_room: Path, tmp_path: Path) -> None:
+    """``*_coarse_segments = 1``: the coarse iterations render the exposure's first and last
+    sub-pose only, the fine ones all K + 1."""
+    _, stats = _run(tiny_room, tmp_path / "coarse_k", tracking_coarse_scale=0.5,
+                    tracking_coarse_fraction=0.5, tracking_coarse_segments=1,
+                    mapping_coarse_scale=0.5, mapping_coarse_fraction=0.5,
+                    mapping_coarse_segments=1)
+    n, m = BASE["tracking_iters"], BASE["segments"] + 1
+    coarse = coarse_iterations(int(n), 0.5, 0.5)
+    for rec in stats["work"]["per_frame"][1:]:
+        assert rec["tracking"]["cameras"] == coarse * 2 + (n - coarse) * m
+        assert rec["tracking"]["pixels"] == (coarse * 2 * (W // 2) * (H // 2)
+                                             + (n - coarse) * m * W * H)
+    init = BASE["init_iters"]
+    coarse_init = coarse_iterations(int(init), 0.5, 0.5)
+    assert stats["work"]["per_frame"][0]["init"]["cameras"] == coarse_init * 2 + (
+        init - coarse_init) * m
+
+
 def test_uncovered_insertion_adds_fewer_gaussians(plain: tuple[RunFolder, dict[str, Any]],
                                                   tiny_room: Path, tmp_path: Path) -> None:
     _, all_stats = plain
