@@ -39,7 +39,6 @@ class _CompositeTiles(torch.autograd.Function):
         opacities: torch.Tensor,
         colors: torch.Tensor,
         extents: torch.Tensor,
-        order: torch.Tensor,
         width: int,
         height: int,
     ) -> tuple[torch.Tensor, ...]:
@@ -48,7 +47,7 @@ class _CompositeTiles(torch.autograd.Function):
         m2s = _np(log_opacity_margin(opacities.detach()) * (1.0 + 2e-3) + 1e-6)
         arrs = (_np(means2d), _np(conics), _np(depths), _np(opacities), m2s.astype(
             _np(means2d).dtype), _np(colors), _np(extents))
-        isect, offsets = nk.bin_tiles(arrs[0], arrs[6], _np(order), width, height)
+        isect, offsets = nk.bin_tiles(arrs[0], arrs[6], arrs[2], width, height)
         dt = arrs[0].dtype
         rgb = np.empty((C, height, width, 3), dt)
         dep = np.empty((C, height, width), dt)
@@ -96,7 +95,7 @@ class _CompositeTiles(torch.autograd.Function):
         nk.reduce_rows(isect, offsets, rows, _n_tiles(width, height), out)
         grads = torch.from_numpy(out)
         return (grads[..., 0:2], grads[..., 2:5], grads[..., 9], grads[..., 8].sum(0),
-                grads[..., 5:8].sum(0), None, None, None, None)
+                grads[..., 5:8].sum(0), None, None, None)
 
 
 def composite_tiles(
@@ -111,10 +110,8 @@ def composite_tiles(
     alpha [C,H,W], visibility [C,N] bool)."""
     if proj.means2d.device.type != "cpu":
         raise ValueError("the numba backend needs CPU tensors (use backend='gsplat' on CUDA)")
-    order = torch.argsort(proj.depths.detach(), dim=1, stable=True).to(torch.int32)
     colors = colors.to(proj.means2d.dtype)
     rgb, depth, alpha, vis = _CompositeTiles.apply(
-        proj.means2d, proj.conics, proj.depths, opacities, colors, proj.extents, order,
-        width, height,
+        proj.means2d, proj.conics, proj.depths, opacities, colors, proj.extents, width, height,
     )
     return rgb, depth, alpha, vis

@@ -5,8 +5,8 @@ CUDA-only, taichi-splatting's kernels are GPU-only, warp's autodiff gets the com
 wrong; see ``research/rasterizer.md``). The kernels implement the rule of
 :mod:`egs_bench.render.constants`:
 
-* ``bin_tiles``: per camera, walk the Gaussians in depth order and append each one to the
-  16x16 tiles its ``alpha >= 1/255`` box touches (a counting sort, so lists stay depth-sorted).
+* ``bin_tiles``: per camera, append each Gaussian to the 16x16 tiles its ``alpha >= 1/255``
+  box touches, then sort each tile's list by depth (stable, so ties keep the id order).
 * ``raster_fwd``: parallel over (camera, tile); every Gaussian is evaluated only on the pixels
   of each row where its ``alpha >= 1/255`` ellipse lies (exact span from the conic, then the
   alpha test as usual), clipped to the tile.
@@ -63,21 +63,23 @@ def _row_span(dy, ca, cb, cc, m2, mx, u0, u1):
 
 
 @njit(cache=True, parallel=True)
-def bin_tiles(mean2d, ext, order, W, H):
-    """Tile lists for C cameras.
+def bin_tiles(mean2d, ext, depth, W, H):
+    """Depth-sorted tile lists for C cameras.
 
-    Args: mean2d [C,N,2], ext [C,N,2] (negative = culled), order [C,N] int32 (depth order).
+    Args: mean2d [C,N,2], ext [C,N,2] (negative = culled), depth [C,N] (camera z).
     Returns: isect [M] int32 Gaussian ids and offsets [C*T+1] int64; tile ``kt = k*T + t``
-    owns ``isect[offsets[kt]:offsets[kt+1]]``, in depth order.
+    owns ``isect[offsets[kt]:offsets[kt+1]]``, sorted by depth, ties by Gaussian id: the order
+    of a stable sort of all N depths, restricted to the tile. Sorting each tile's list (a
+    counting sort into tiles in id order, then a stable sort per tile) instead of all N
+    Gaussians per camera skips the culled ones and runs in parallel over tiles.
     """
-    C, N = order.shape
+    C, N = depth.shape
     TX = (W + TILE - 1) // TILE
     TY = (H + TILE - 1) // TILE
     T = TX * TY
     counts = np.zeros(C * T, np.int64)
     for k in prange(C):
-        for ii in range(N):
-            g = order[k, ii]
+        for g in range(N):
             ok, u0, u1, v0, v1 = _box(mean2d[k, g, 0], mean2d[k, g, 1], ext[k, g, 0],
                                       ext[k, g, 1], W, H)
             if ok:
@@ -89,8 +91,7 @@ def bin_tiles(mean2d, ext, order, W, H):
     isect = np.empty(offsets[-1], np.int32)
     fill = offsets[:-1].copy()
     for k in prange(C):
-        for ii in range(N):
-            g = order[k, ii]
+        for g in range(N):
             ok, u0, u1, v0, v1 = _box(mean2d[k, g, 0], mean2d[k, g, 1], ext[k, g, 0],
                                       ext[k, g, 1], W, H)
             if ok:
@@ -99,6 +100,18 @@ def bin_tiles(mean2d, ext, order, W, H):
                         kt = k * T + ty * TX + tx
                         isect[fill[kt]] = g
                         fill[kt] += 1
+    for kt in prange(C * T):
+        start = offsets[kt]
+        n = offsets[kt + 1] - start
+        if n > 1:
+            k = kt // T
+            ids = isect[start:start + n].copy()
+            keys = np.empty(n, depth.dtype)
+            for i in range(n):
+                keys[i] = depth[k, ids[i]]
+            by_depth = np.argsort(keys, kind="mergesort")  # stable: ties keep id order
+            for i in range(n):
+                isect[start + i] = ids[by_depth[i]]
     return isect, offsets
 
 
