@@ -596,27 +596,30 @@ def paper_preset() -> SlamConfig:
 
 CPU_BUDGET = BudgetConfig(
     # The sequence's full resolution, with most iterations at a coarse level: more accurate
-    # than half the resolution at about the same rendering work
-    # (docs/notes/slam_config_measurements_2026-12-04.md). K = 3: each sub-pose is a render.
+    # than half the resolution at about its cost (BENCHMARKS.md "Accuracy per work",
+    # docs/notes/engine_cost_2026-12-04.md). K = 3: each sub-pose is a render; the coarse
+    # levels render K = 2 (3 sub-poses): their blur spans a half or a quarter of the pixels.
     resolution_scale=1.0,
     segments=3,
+    tracking_coarse_segments=2,
+    mapping_coarse_segments=2,
     # 20 tracking iterations with larger, decaying steps instead of 100 at MonoGS's rates; the
-    # first 17 at a quarter of the resolution, the last 3 at the full one.
+    # first 18 at a quarter of the resolution, the last 2 at the full one (14 iterations
+    # tracked worse).
     tracking_iters=20,
     tracking_coarse_scale=0.25,
-    tracking_coarse_fraction=0.85,
+    tracking_coarse_fraction=0.9,
     lr_rot=0.006,
     lr_trans=0.006,
     tracking_lr_final=0.1,
     converged_threshold=2e-4,
     # Map initialisation and keyframe rounds: all but the last 5 % at half the resolution.
-    init_iters=150,
+    init_iters=100,
     mapping_coarse_scale=0.5,
     mapping_coarse_fraction=0.95,
-    # 30 iterations x 2 views per keyframe: with fewer iterations the map lagged behind the new
-    # keyframes and both methods drifted; a third view cost more and gained nothing measurable
-    # at this resolution (the note above).
-    mapping_iters=30,
+    # 20 iterations x 2 views per keyframe: 30 gained nothing measurable at the full
+    # resolution; a third view cost more and gained nothing either (the notes above).
+    mapping_iters=20,
     views_per_iter=2,
     prune_every=20,
     prune_offset=19,
@@ -627,7 +630,7 @@ CPU_BUDGET = BudgetConfig(
     # 16 edge-mask blocks, measured at this budget's resolution (MonoGS uses 32 on Replica's
     # 1200x680).
     edge_blocks=16,
-    # Larger Gaussian steps for 30 instead of 150 iterations per keyframe.
+    # Larger Gaussian steps for 20 instead of 150 iterations per keyframe.
     lr_colors=0.01,
     lr_opacity=0.05,
     lr_means=0.002,
