@@ -206,8 +206,8 @@ class BudgetConfig:
     # than budget.segments means budget.segments). A blur of b pixels spans s b pixels at scale
     # s, so fewer sub-poses describe it there: the coarse level keeps every (K / Kc)-th sub-pose
     # and sums the events of the segments it merges (egs_bench/slam/levels.py).
-    tracking_coarse_segments: int | None = None
-    mapping_coarse_segments: int | None = None
+    tracking_coarse_segments: int | None = None  # Kc of tracking's coarse level
+    mapping_coarse_segments: int | None = None   # Kc of mapping's coarse level
     # Which pixels of a new keyframe may become Gaussians (1 in pcd_downsample of them):
     # "all" valid ones (MonoGS), or "uncovered": rendered opacity below insertion_alpha or
     # expected depth off by more than insertion_depth_error x the measured depth.

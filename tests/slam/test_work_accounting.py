@@ -22,7 +22,8 @@ W, H = 64, 48  # tiny_room
 BASE = dict(resolution_scale=1.0, init_iters=6, tracking_iters=8, mapping_iters=3,
             views_per_iter=2, kf_interval=2, pcd_downsample_init=2, pcd_downsample=4,
             converged_threshold=0.0, segments=3, kf_overlap=1.0,
-            tracking_coarse_scale=1.0, mapping_coarse_scale=1.0)  # levels: where a test sets them
+            tracking_coarse_scale=1.0, mapping_coarse_scale=1.0,  # levels: where a test sets them
+            tracking_coarse_segments=None, mapping_coarse_segments=None)
 
 
 def _run(seq_path: Path, out: Path, method: str = "egs", **options: Any
