@@ -5,11 +5,14 @@ Work is machine-independent (slam_stats.json's ``work`` section, egs_bench.rende
 Gaussian-pixel blends per frame after frame 0, forward plus backward. A run's budget label is
 the sweep setting in its folder name (``<method>__<setting>/seed<N>``; a ``_p<N>`` suffix names
 a perturbation run of the same budget, ``runtime.perturbation``), else its preset. Each budget's
-row is the mean and spread over its seeds and perturbations (the noise floor).
+row is the mean and spread over its seeds and perturbations (the noise floor), per
+``measured`` label (where and when the runs were made: another machine rounds differently, so
+its runs are never averaged with these).
 
-    python benchmarks/frontier.py collect SWEEP_DIR... --out CSV [--overwrite]
-    python benchmarks/frontier.py table docs/notes/frontier_runs.csv [--budgets b05,e1,...]
-    python benchmarks/frontier.py figure docs/notes/frontier_runs.csv --out docs/images/frontier.png
+    python benchmarks/frontier.py collect SWEEP_DIR... --measured LABEL --out CSV \
+        [--append | --overwrite]
+    python benchmarks/frontier.py table CSV [--budgets b05,e1,...] [--measured LABEL]
+    python benchmarks/frontier.py figure CSV --out PNG [--measured LABEL] [--overwrite]
 """
 
 from __future__ import annotations
@@ -29,7 +32,7 @@ from egs_bench.fileio import write_text_atomic
 
 COLUMNS = ("sequence", "method", "budget", "seed", "perturbation", "frames", "ate_cm",
            "psnr_db", "ssim", "lpips", "blends_m_per_frame", "pixels_m_per_frame",
-           "cameras_per_frame", "gaussians", "keyframes", "s_per_frame_after_init")
+           "cameras_per_frame", "gaussians", "keyframes", "s_per_frame_after_init", "measured")
 
 
 def _budget(run_dir: Path, config: dict) -> str:
@@ -39,8 +42,9 @@ def _budget(run_dir: Path, config: dict) -> str:
     return re.sub(r"_p\d+$", "", name.split("__", 1)[1])
 
 
-def run_row(run_dir: Path) -> dict | None:
-    """One CSV row of a finished, evaluated run folder (None when it lacks its metrics or work)."""
+def run_row(run_dir: Path, measured: str) -> dict | None:
+    """One CSV row of a finished, evaluated run folder (None when it lacks its metrics or work);
+    ``measured``: where and when it ran."""
     import yaml
 
     metrics_path, stats_path = run_dir / "metrics.json", run_dir / "slam_stats.json"
@@ -68,6 +72,7 @@ def run_row(run_dir: Path) -> dict | None:
         "cameras_per_frame": round(mean["cameras"], 1),
         "gaussians": stats["gaussians"], "keyframes": stats["keyframes"],
         "s_per_frame_after_init": _round(1 / after if after else None, 2),
+        "measured": measured,
     }
 
 
@@ -75,22 +80,27 @@ def _round(value, digits: int):
     return None if value is None else round(float(value), digits)
 
 
-def collect(roots: list[Path], out: Path) -> list[dict]:
+def collect(roots: list[Path], out: Path, measured: str, append: bool = False) -> list[dict]:
+    """Rows of every finished run under ``roots`` into ``out`` (after the rows ``out`` holds
+    when ``append``); returns the new rows."""
+    kept = read_rows(out) if append and out.is_file() else []
     rows = []
     for root in roots:
         for stats in sorted(root.rglob("slam_stats.json")):
-            row = run_row(stats.parent)
+            row = run_row(stats.parent, measured)
             if row is not None:
                 rows.append(row)
-    rows.sort(key=lambda r: (r["sequence"], r["method"], r["blends_m_per_frame"], r["seed"],
-                             r["perturbation"]))
+    new = list(rows)
+    rows = kept + rows
+    rows.sort(key=lambda r: (r["sequence"], r["method"], float(r["blends_m_per_frame"]),
+                             int(r["seed"]), int(r["perturbation"])))
     text = io.StringIO(newline="")
-    writer = csv.DictWriter(text, fieldnames=COLUMNS)
+    writer = csv.DictWriter(text, fieldnames=COLUMNS, restval="")
     writer.writeheader()
     writer.writerows(rows)
     out.parent.mkdir(parents=True, exist_ok=True)
     write_text_atomic(out, text.getvalue())
-    return rows
+    return new
 
 
 def read_rows(path: Path) -> list[dict]:
@@ -98,10 +108,11 @@ def read_rows(path: Path) -> list[dict]:
         return list(csv.DictReader(f))
 
 
-def groups(rows: list[dict]) -> dict[tuple[str, str, str], list[dict]]:
-    out: dict[tuple[str, str, str], list[dict]] = defaultdict(list)
+def groups(rows: list[dict]) -> dict[tuple[str, str, str, str], list[dict]]:
+    """Runs by (sequence, method, budget, measured)."""
+    out: dict[tuple[str, str, str, str], list[dict]] = defaultdict(list)
     for r in rows:
-        out[(r["sequence"], r["method"], r["budget"])].append(r)
+        out[(r["sequence"], r["method"], r["budget"], r.get("measured") or "")].append(r)
     return out
 
 
@@ -115,19 +126,20 @@ def _spread(values: list[float], digits: int) -> str:
 
 
 def table(rows: list[dict]) -> str:
-    """Markdown: per sequence, method and budget, mean ± half-range over its runs (seeds x
-    perturbations)."""
+    """Markdown: per sequence, method, budget and measured label, mean ± half-range over its
+    runs (seeds x perturbations)."""
     lines = ["| sequence | method | budget | runs | blends / frame (M) | ATE cm | PSNR dB | "
-             "SSIM | LPIPS | Gaussians | s / frame |",
-             "|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|"]
-    for (seq, method, budget), rs in sorted(groups(rows).items(), key=lambda kv: (
-            kv[0][0], kv[0][1], statistics.fmean(float(r["blends_m_per_frame"]) for r in kv[1]))):
+             "SSIM | LPIPS | Gaussians | s / frame | measured |",
+             "|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---|"]
+    for (seq, method, budget, measured), rs in sorted(groups(rows).items(), key=lambda kv: (
+            kv[0][0], kv[0][1], kv[0][3],
+            statistics.fmean(float(r["blends_m_per_frame"]) for r in kv[1]))):
         def col(key: str, digits: int, rs: list[dict] = rs) -> str:
             return _spread([float(r[key]) for r in rs if r[key] not in ("", None)], digits)
         lines.append(f"| {seq} | {method} | {budget} | {len(rs)} | {col('blends_m_per_frame', 1)} "
                      f"| {col('ate_cm', 2)} | {col('psnr_db', 2)} | {col('ssim', 3)} | "
                      f"{col('lpips', 3)} | {col('gaussians', 0)} | "
-                     f"{col('s_per_frame_after_init', 2)} |")
+                     f"{col('s_per_frame_after_init', 2)} | {measured} |")
     return "\n".join(lines)
 
 
@@ -142,7 +154,7 @@ def figure(rows: list[dict], out: Path) -> None:
 
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
     by_line: dict[tuple[str, str], list] = defaultdict(list)
-    for (seq, method, budget), rs in groups(rows).items():
+    for (seq, method, budget, _), rs in groups(rows).items():
         work = statistics.fmean(float(r["blends_m_per_frame"]) for r in rs)
         by_line[(seq, method)].append((work, budget, rs))
     for (seq, method), points in sorted(by_line.items()):
@@ -174,28 +186,40 @@ def main() -> None:
     sub = parser.add_subparsers(dest="cmd", required=True)
     c = sub.add_parser("collect")
     c.add_argument("roots", nargs="+", type=Path)
+    c.add_argument("--measured", required=True,
+                   help="where and when the runs were made, e.g. '2026-12-06, 2-core EPYC'")
     c.add_argument("--out", type=Path, required=True)
-    c.add_argument("--overwrite", action="store_true", help="replace an existing --out file")
+    mode = c.add_mutually_exclusive_group()
+    mode.add_argument("--overwrite", action="store_true", help="replace an existing --out file")
+    mode.add_argument("--append", action="store_true", help="add to an existing --out file")
     t = sub.add_parser("table")
     t.add_argument("csv", type=Path)
     t.add_argument("--budgets", help="comma-separated budgets to list (default: all)")
+    t.add_argument("--measured", help="only the runs of this measured label")
     f = sub.add_parser("figure")
     f.add_argument("csv", type=Path)
     f.add_argument("--out", type=Path, required=True)
     f.add_argument("--overwrite", action="store_true", help="replace an existing --out file")
+    f.add_argument("--measured", help="only the runs of this measured label")
     args = parser.parse_args()
-    if args.cmd in ("collect", "figure") and args.out.exists() and not args.overwrite:
-        parser.error(f"{args.out} exists; give --overwrite to replace it")
+    if args.cmd in ("collect", "figure") and args.out.exists() and not (
+            args.overwrite or getattr(args, "append", False)):
+        parser.error(f"{args.out} exists; give --overwrite to replace it"
+                     + (" or --append to add to it" if args.cmd == "collect" else ""))
     if args.cmd == "collect":
-        print(f"{len(collect(args.roots, args.out))} runs -> {args.out}")
-    elif args.cmd == "table":
-        rows = read_rows(args.csv)
+        new = collect(args.roots, args.out, args.measured, append=args.append)
+        print(f"{len(new)} runs -> {args.out}")
+        return
+    rows = read_rows(args.csv)
+    if args.measured:
+        rows = [row for row in rows if row.get("measured") == args.measured]
+    if args.cmd == "table":
         if args.budgets:
             keep = set(args.budgets.split(","))
             rows = [row for row in rows if row["budget"] in keep]
         print(table(rows))
     else:
-        figure(read_rows(args.csv), args.out)
+        figure(rows, args.out)
         print(f"figure -> {args.out}")
 
 
