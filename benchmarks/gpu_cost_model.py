@@ -124,6 +124,9 @@ class Schedule:
         refine_iters: final refinement iterations (one keyframe each).
         syncs_per_iter: host-device synchronisations per iteration (1 in today's code).
         concurrent: mapping overlapped with tracking (``mapping_mode: concurrent``).
+        tracking_view_cameras, mapping_view_cameras: mean cameras rendered per view and
+            iteration in that phase (None: ``cameras_per_view``; fewer where a coarse level
+            renders fewer sub-poses, ``budget.*_coarse_segments``).
         tracking_pixel_share, mapping_pixel_share: mean pixels of a camera of that phase, as
             a fraction of a camera at the sequence's full resolution (1.0: the fitted runs;
             lower with ``resolution_scale`` < 1 or coarse-to-fine levels). How a camera's cost
@@ -142,10 +145,17 @@ class Schedule:
     concurrent: bool = False
     tracking_pixel_share: float = 1.0
     mapping_pixel_share: float = 1.0
+    tracking_view_cameras: float | None = None
+    mapping_view_cameras: float | None = None
 
     @property
     def frames(self) -> int:
         return len(self.tracking_iters) + 1
+
+    def view_cameras(self, phase: str) -> float:
+        """Mean cameras per view and iteration of ``phase`` (``tracking`` or ``mapping``)."""
+        mean = self.tracking_view_cameras if phase == "tracking" else self.mapping_view_cameras
+        return float(self.cameras_per_view) if mean is None else mean
 
     def replace(self, **changes: Any) -> Schedule:
         return dataclasses.replace(self, **changes)
@@ -192,11 +202,12 @@ def predict(s: Schedule, c: CostConstants | None = None, scaling: str = "cameras
         return iters * iteration_ms("mapping", s.family, cameras, s.syncs_per_iter, c,
                                     map_f) / 1e3
 
-    init = mapping_s(s.init_iters, s.cameras_per_view)
+    per_view = s.view_cameras("mapping") / s.cameras_per_view  # coarse levels' fewer sub-poses
+    init = mapping_s(s.init_iters, s.view_cameras("mapping"))
     track = (sum(s.tracking_iters) / 1e3
-             * iteration_ms("tracking", s.family, s.cameras_per_view, s.syncs_per_iter, c,
-                            track_f))
-    mapping = (sum(mapping_s(s.mapping_iters, cams) for cams in s.mapping_cameras)
+             * iteration_ms("tracking", s.family, s.view_cameras("tracking"), s.syncs_per_iter,
+                            c, track_f))
+    mapping = (sum(mapping_s(s.mapping_iters, cams * per_view) for cams in s.mapping_cameras)
                + mapping_s(s.refine_iters, s.cameras_per_view))
     total = init + (max(track, mapping) if s.concurrent else track + mapping)
     return Prediction(init, track, mapping, total, s.frames / total if total > 0 else float("nan"))
@@ -244,18 +255,39 @@ def build_schedule(label: str, slam: dict[str, Any], tracking_iters: list[int],
         mapping_cameras=tuple(cameras),
         refine_iters=int(_value(slam, "mapping", "refine_iters", source)),
         concurrent="concurrent" in modes,
-        tracking_pixel_share=level_share(budget, "tracking"),
-        mapping_pixel_share=level_share(budget, "mapping"))
+        tracking_pixel_share=level_share(budget, "tracking", per_view - 1 if blur else None),
+        mapping_pixel_share=level_share(budget, "mapping", per_view - 1 if blur else None),
+        tracking_view_cameras=level_cameras(budget, "tracking", per_view - 1) if blur else None,
+        mapping_view_cameras=level_cameras(budget, "mapping", per_view - 1) if blur else None)
 
 
-def level_share(budget: dict[str, Any], phase: str) -> float:
+def level_share(budget: dict[str, Any], phase: str, segments: int | None = None) -> float:
     """A camera's mean pixels in ``phase`` as a fraction of the sequence's, from the budget:
-    ``resolution_scale^2`` x (the coarse fraction of iterations x ``coarse_scale^2`` + the
-    rest) (egs_bench/slam/levels.py; fields a budget lacks count as off)."""
+    ``resolution_scale^2`` x the coarse and fine levels' pixel shares weighted by the cameras
+    each renders (iterations x sub-poses, :func:`level_cameras`; ``segments``: K of the blur
+    model, None without it) (egs_bench/slam/levels.py; fields a budget lacks count as off)."""
     scale = float(budget.get("resolution_scale", 1.0))
     coarse = float(budget.get(f"{phase}_coarse_scale", 1.0))
     fraction = float(budget.get(f"{phase}_coarse_fraction", 0.0)) if coarse < 1.0 else 0.0
-    return scale ** 2 * (fraction * coarse ** 2 + 1.0 - fraction)
+    fine_cams = 1.0 if segments is None else segments + 1.0
+    coarse_cams = fine_cams
+    kc = budget.get(f"{phase}_coarse_segments")
+    if segments is not None and kc is not None:
+        coarse_cams = min(int(kc), segments) + 1.0
+    weight = fraction * coarse_cams + (1.0 - fraction) * fine_cams
+    return scale ** 2 * (fraction * coarse_cams * coarse ** 2
+                         + (1.0 - fraction) * fine_cams) / weight
+
+
+def level_cameras(budget: dict[str, Any], phase: str, segments: int) -> float:
+    """Mean cameras per view in ``phase`` with K = ``segments``: the coarse fraction of the
+    iterations renders ``min(Kc, K) + 1`` sub-poses (``budget.{phase}_coarse_segments``), the
+    rest ``K + 1`` (egs_bench/slam/levels.py; fields a budget lacks count as off)."""
+    coarse = float(budget.get(f"{phase}_coarse_scale", 1.0))
+    fraction = float(budget.get(f"{phase}_coarse_fraction", 0.0)) if coarse < 1.0 else 0.0
+    kc = budget.get(f"{phase}_coarse_segments")
+    coarse_cameras = min(int(kc), segments) + 1 if kc is not None else segments + 1
+    return fraction * coarse_cameras + (1.0 - fraction) * (segments + 1)
 
 
 _REMOVED = re.compile(r"frame (\d+): keyframe; window -\[([^\]]*)\]")
@@ -303,6 +335,9 @@ def schedule_from_run(run: Path) -> Schedule:
                   for p in ("tracking", "mapping") if (phases.get(p) or {}).get("cameras")}
         s = s.replace(tracking_pixel_share=shares.get("tracking", s.tracking_pixel_share),
                       mapping_pixel_share=shares.get("mapping", s.mapping_pixel_share))
+        track = phases.get("tracking") or {}
+        if track.get("calls"):  # one view per tracking call: counted cameras per view
+            s = s.replace(tracking_view_cameras=track["cameras"] / track["calls"])
     return s
 
 

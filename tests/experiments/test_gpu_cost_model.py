@@ -102,6 +102,20 @@ def test_level_share_follows_the_budget() -> None:
     assert cm.level_share(coarse, "mapping") == 1.0  # the other phase's levels do not count
 
 
+def test_coarse_levels_with_fewer_sub_poses_count_fewer_cameras() -> None:
+    """K = 3 with 3 in 4 tracking iterations at 1/4 rendering Kc = 1 (2 sub-poses): cameras
+    per view 0.75 x 2 + 0.25 x 4 = 2.5; pixels per camera (1.5 / 16 + 1) / 2.5."""
+    budget = {"tracking_coarse_scale": 0.25, "tracking_coarse_fraction": 0.75,
+              "tracking_coarse_segments": 1}
+    assert cm.level_cameras(budget, "tracking", 3) == pytest.approx(2.5)
+    assert cm.level_share(budget, "tracking", 3) == pytest.approx((1.5 / 16 + 1.0) / 2.5)
+    assert cm.level_cameras(budget, "mapping", 3) == 4.0  # the other phase keeps K + 1
+    assert cm.level_cameras({**budget, "tracking_coarse_segments": 9}, "tracking", 3) == 4.0
+    # total pixels per view and iteration are the sum over the levels
+    total = cm.level_cameras(budget, "tracking", 3) * cm.level_share(budget, "tracking", 3)
+    assert total == pytest.approx(0.75 * 2 / 16 + 0.25 * 4)
+
+
 def test_pixel_scalings_bracket_a_reduced_resolution() -> None:
     s = cm.paper_scale("egs", 25)
     small = s.replace(tracking_pixel_share=0.25, mapping_pixel_share=0.25)
