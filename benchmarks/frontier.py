@@ -12,7 +12,7 @@ its runs are never averaged with these).
     python benchmarks/frontier.py collect SWEEP_DIR... --measured LABEL --out CSV \
         [--append | --overwrite]
     python benchmarks/frontier.py table CSV [--budgets b05,e1,...] [--measured LABEL]
-    python benchmarks/frontier.py figure CSV --out PNG [--measured LABEL] [--overwrite]
+    python benchmarks/frontier.py figure CSV --out PNG [--budgets ...] [--measured LABEL]
 """
 
 from __future__ import annotations
@@ -154,9 +154,12 @@ def figure(rows: list[dict], out: Path) -> None:
 
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
     by_line: dict[tuple[str, str], list] = defaultdict(list)
-    for (seq, method, budget, _), rs in groups(rows).items():
+    several = len({r.get("measured") or "" for r in rows}) > 1
+    for (seq, method, budget, measured), rs in groups(rows).items():
         work = statistics.fmean(float(r["blends_m_per_frame"]) for r in rs)
-        by_line[(seq, method)].append((work, budget, rs))
+        # the date tells apart the same budget measured on two machines
+        label = f"{budget} ({measured.split(',')[0][5:]})" if several and measured else budget
+        by_line[(seq, method)].append((work, label, rs))
     for (seq, method), points in sorted(by_line.items()):
         points.sort(key=lambda p: p[0])
         for ax, key in zip(axes, ("ate_cm", "psnr_db"), strict=True):
@@ -201,6 +204,7 @@ def main() -> None:
     f.add_argument("--out", type=Path, required=True)
     f.add_argument("--overwrite", action="store_true", help="replace an existing --out file")
     f.add_argument("--measured", help="only the runs of this measured label")
+    f.add_argument("--budgets", help="comma-separated budgets to plot (default: all)")
     args = parser.parse_args()
     if args.cmd in ("collect", "figure") and args.out.exists() and not (
             args.overwrite or getattr(args, "append", False)):
@@ -213,10 +217,10 @@ def main() -> None:
     rows = read_rows(args.csv)
     if args.measured:
         rows = [row for row in rows if row.get("measured") == args.measured]
+    if args.budgets:
+        keep = set(args.budgets.split(","))
+        rows = [row for row in rows if row["budget"] in keep]
     if args.cmd == "table":
-        if args.budgets:
-            keep = set(args.budgets.split(","))
-            rows = [row for row in rows if row["budget"] in keep]
         print(table(rows))
     else:
         figure(rows, args.out)
