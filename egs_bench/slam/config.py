@@ -596,9 +596,10 @@ def paper_preset() -> SlamConfig:
 
 CPU_BUDGET = BudgetConfig(
     # The sequence's full resolution, with most iterations at a coarse level: more accurate
-    # than half the resolution at about its cost (BENCHMARKS.md "Accuracy per work",
-    # docs/notes/engine_cost_2026-12-04.md). K = 3: each sub-pose is a render; the coarse
-    # levels render K = 2 (3 sub-poses): their blur spans a half or a quarter of the pixels.
+    # than half the resolution at its cost (BENCHMARKS.md "Accuracy per work";
+    # docs/notes/engine_cost_2026-12-06.md). K = 3: each sub-pose is a render; the coarse
+    # levels render K = 2 (3 sub-poses): their blur spans a half or a quarter of the pixels
+    # (K = 1 there doubled the ATE).
     resolution_scale=1.0,
     segments=3,
     tracking_coarse_segments=2,
@@ -618,13 +619,14 @@ CPU_BUDGET = BudgetConfig(
     mapping_coarse_scale=0.5,
     mapping_coarse_fraction=0.95,
     # 20 iterations x 2 views per keyframe: 30 gained nothing measurable at the full
-    # resolution; a third view cost more and gained nothing either (the notes above).
+    # resolution; a third view cost more and gained nothing either
+    # (docs/notes/slam_config_measurements_2026-12-04.md).
     mapping_iters=20,
     views_per_iter=2,
     prune_every=20,
     prune_offset=19,
     # 1 in 2 valid pixels at frame 0, 1 in 8 at keyframes: sparser maps at the full resolution
-    # tracked worse, and the end-to-end test's accuracy bound failed (the note above).
+    # tracked worse, and the end-to-end test's accuracy bound failed (the same note).
     pcd_downsample_init=2,
     pcd_downsample=8,
     # 16 edge-mask blocks, measured at this budget's resolution (MonoGS uses 32 on Replica's
