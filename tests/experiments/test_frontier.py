@@ -84,7 +84,8 @@ def test_runs_measured_elsewhere_are_never_averaged_together() -> None:
             _row("e1", 0, 0, 2.0, 72.0, "machine B")]
     lines = fr.table(rows).splitlines()[2:]
     assert len(lines) == 2
-    assert any(" | 2 | 70.0 ± 0.0 | 1.10 ± 0.10 |" in line and "machine A" in line for line in lines)
+    assert any(" | 2 | 70.0 ± 0.0 | 1.10 ± 0.10 |" in line and "machine A" in line
+               for line in lines)
     assert any(" | 1 | 72.0 | 2.00 |" in line and "machine B" in line for line in lines)
 
 
