@@ -22,14 +22,15 @@ W, H = 64, 48  # tiny_room
 BASE = dict(resolution_scale=1.0, init_iters=6, tracking_iters=8, mapping_iters=3,
             views_per_iter=2, kf_interval=2, pcd_downsample_init=2, pcd_downsample=4,
             converged_threshold=0.0, segments=3, kf_overlap=1.0,
-            tracking_coarse_scale=1.0, mapping_coarse_scale=1.0,  # levels: where a test sets them
-            tracking_coarse_segments=None, mapping_coarse_segments=None)
+            tracking_coarse_scale=1.0, mapping_coarse_scale=1.0)  # levels: where a test sets them
+# the coarse levels render every sub-pose unless a test says otherwise
+ALL_SUBPOSES = dict(tracking_coarse_segments=None, mapping_coarse_segments=None)
 
 
 def _run(seq_path: Path, out: Path, method: str = "egs", **options: Any
          ) -> tuple[RunFolder, dict[str, Any]]:
     seq = Sequence.open(seq_path)
-    cfg = methods.BUILTIN[method].config("cpu").replace(**{**BASE, **options})
+    cfg = methods.BUILTIN[method].config("cpu").replace(**{**BASE, **ALL_SUBPOSES, **options})
     run = run_slam(seq, out, method_name=method, config=cfg,
                    settings=RunSettings(preset="cpu", seed=0, progress=False))
     return run, json.loads((run.path / "slam_stats.json").read_text())
