@@ -261,33 +261,39 @@ def build_schedule(label: str, slam: dict[str, Any], tracking_iters: list[int],
         mapping_view_cameras=level_cameras(budget, "mapping", per_view - 1) if blur else None)
 
 
+def _levels(budget: dict[str, Any], phase: str, segments: int | None
+            ) -> tuple[float, float, float, float]:
+    """``(coarse fraction of the iterations, coarse scale, cameras per view at the coarse
+    level, at the fine level)`` of ``phase``; ``segments``: K of the blur model (None without
+    it). The coarse level's sub-poses follow the SLAM's own rule
+    (:func:`egs_bench.slam.levels.kept_subposes`); fields a budget lacks count as off."""
+    from egs_bench.slam.levels import kept_subposes
+
+    coarse = float(budget.get(f"{phase}_coarse_scale", 1.0))
+    fraction = float(budget.get(f"{phase}_coarse_fraction", 0.0)) if coarse < 1.0 else 0.0
+    if segments is None:
+        return fraction, coarse, 1.0, 1.0
+    kept = kept_subposes(segments, budget.get(f"{phase}_coarse_segments"))
+    return fraction, coarse, float(len(kept)), segments + 1.0
+
+
 def level_share(budget: dict[str, Any], phase: str, segments: int | None = None) -> float:
     """A camera's mean pixels in ``phase`` as a fraction of the sequence's, from the budget:
     ``resolution_scale^2`` x the coarse and fine levels' pixel shares weighted by the cameras
     each renders (iterations x sub-poses, :func:`level_cameras`; ``segments``: K of the blur
-    model, None without it) (egs_bench/slam/levels.py; fields a budget lacks count as off)."""
+    model, None without it) (egs_bench/slam/levels.py)."""
     scale = float(budget.get("resolution_scale", 1.0))
-    coarse = float(budget.get(f"{phase}_coarse_scale", 1.0))
-    fraction = float(budget.get(f"{phase}_coarse_fraction", 0.0)) if coarse < 1.0 else 0.0
-    fine_cams = 1.0 if segments is None else segments + 1.0
-    coarse_cams = fine_cams
-    kc = budget.get(f"{phase}_coarse_segments")
-    if segments is not None and kc is not None:
-        coarse_cams = min(int(kc), segments) + 1.0
-    weight = fraction * coarse_cams + (1.0 - fraction) * fine_cams
-    return scale ** 2 * (fraction * coarse_cams * coarse ** 2
-                         + (1.0 - fraction) * fine_cams) / weight
+    fraction, coarse, coarse_cams, fine_cams = _levels(budget, phase, segments)
+    pixels = fraction * coarse_cams * coarse ** 2 + (1.0 - fraction) * fine_cams
+    return scale ** 2 * pixels / level_cameras(budget, phase, segments)
 
 
-def level_cameras(budget: dict[str, Any], phase: str, segments: int) -> float:
+def level_cameras(budget: dict[str, Any], phase: str, segments: int | None) -> float:
     """Mean cameras per view in ``phase`` with K = ``segments``: the coarse fraction of the
-    iterations renders ``min(Kc, K) + 1`` sub-poses (``budget.{phase}_coarse_segments``), the
-    rest ``K + 1`` (egs_bench/slam/levels.py; fields a budget lacks count as off)."""
-    coarse = float(budget.get(f"{phase}_coarse_scale", 1.0))
-    fraction = float(budget.get(f"{phase}_coarse_fraction", 0.0)) if coarse < 1.0 else 0.0
-    kc = budget.get(f"{phase}_coarse_segments")
-    coarse_cameras = min(int(kc), segments) + 1 if kc is not None else segments + 1
-    return fraction * coarse_cameras + (1.0 - fraction) * (segments + 1)
+    iterations renders the sub-poses its level keeps (``budget.{phase}_coarse_segments``), the
+    rest ``K + 1`` (1 without the blur model, ``segments`` None)."""
+    fraction, _, coarse_cams, fine_cams = _levels(budget, phase, segments)
+    return fraction * coarse_cams + (1.0 - fraction) * fine_cams
 
 
 _REMOVED = re.compile(r"frame (\d+): keyframe; window -\[([^\]]*)\]")

@@ -66,9 +66,8 @@ class Mapper:
         self.rng = rng
         cfg = ctx.cfg
         self.iteration = 0
-        self.targets: dict[int, LossTargets] = {}
-        self.coarse_targets: dict[int, LossTargets] = {}
-        self.coarse_fractions: dict[int, np.ndarray] = {}
+        # by (keyframe, coarse level): its targets and sub-pose fractions
+        self.levels: dict[tuple[int, bool], tuple[LossTargets, np.ndarray]] = {}
         self.crf_opt = None
         crf_params = list(crf.parameters())
         if crf_params:
@@ -92,23 +91,17 @@ class Mapper:
         """Keyframe ``k``'s mapping targets and sub-pose fractions [M] at the internal level, or
         at the coarse level of ``budget.mapping_coarse_scale`` (and its
         ``mapping_coarse_segments``); prepared once per keyframe."""
-        budget = self.cfg.budget
-        if not coarse:
-            if k not in self.targets:
-                self.targets[k] = self._prepare(obs)
-            return self.targets[k], obs.fractions
-        if k not in self.coarse_targets:
-            lvl = self.ctx.level(budget.mapping_coarse_scale)
-            small = coarse_observation(obs, lvl.cam, self.cfg, lvl.edge_blocks,
-                                       budget.mapping_coarse_segments)
-            self.coarse_targets[k] = self._prepare(small)
-            self.coarse_fractions[k] = small.fractions
-        return self.coarse_targets[k], self.coarse_fractions[k]
-
-    def _prepare(self, obs: FrameObs) -> LossTargets:
-        return prepare_targets(obs, self.cfg, self.ctx.theta, tracking=False,
-                               use_events=self.cfg.method.event_mapping,
-                               terms=self.ctx.loss_terms)
+        if (k, coarse) not in self.levels:
+            if coarse:
+                budget = self.cfg.budget
+                lvl = self.ctx.level(budget.mapping_coarse_scale)
+                obs = coarse_observation(obs, lvl.cam, self.cfg, lvl.edge_blocks,
+                                         budget.mapping_coarse_segments)
+            targets = prepare_targets(obs, self.cfg, self.ctx.theta, tracking=False,
+                                      use_events=self.cfg.method.event_mapping,
+                                      terms=self.ctx.loss_terms)
+            self.levels[k, coarse] = (targets, obs.fractions)
+        return self.levels[k, coarse]
 
     def _pick_views(self, window: list[int], all_keyframes: list[int]) -> list[int]:
         """The window plus ``n_random_kfs`` random older keyframes, optionally subsampled to
