@@ -474,7 +474,11 @@ def paper_scale(method: str, frames: int = 300, preset: str = "paper") -> Schedu
 
     slam = BUILTIN[method].config(preset).to_dict()
     kfs = list(range(0, frames, int(slam["keyframes"]["interval"])))
-    iters = [slam["budget"]["tracking_iters"]] * (frames - 1)
+    budget = slam["budget"]
+    iters = [budget["tracking_iters"]] * (frames - 1)
+    if frames > 1 and budget["tracking_iters_no_prior"] is not None and \
+            slam["tracking"]["motion_model"] == "constant-velocity":
+        iters[0] = budget["tracking_iters_no_prior"]  # frame 1 has no velocity yet
     return build_schedule(f"{method}, {preset} preset, {frames} frames, keyframe every "
                           f"{slam['keyframes']['interval']}", slam, iters, kfs, {}, Path("config"))
 

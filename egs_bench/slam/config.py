@@ -170,9 +170,8 @@ class BudgetConfig:
     tracking_iters: int = 100           # (MonoGS)
     # Iterations for a frame whose prediction has no velocity yet (frame 1 under the
     # constant-velocity model): its start is off by the whole inter-frame motion, not by the
-    # error of a prediction. None = tracking_iters, in both presets: a larger budget helped one
-    # sequence's start and hurt another's, and no test on the first, short tracking told the
-    # two apart (docs/notes/slam_config_measurements_2026-12-04.md).
+    # error of a prediction. None = tracking_iters (the paper's 100 already catch it); the cpu
+    # preset's 30 do not (docs/notes/engine_cost_2026-12-06.md §8).
     tracking_iters_no_prior: int | None = None
     lr_rot: float = 0.003               # (MonoGS)
     lr_trans: float = 0.001             # (MonoGS)
@@ -604,12 +603,16 @@ CPU_BUDGET = BudgetConfig(
     segments=3,
     tracking_coarse_segments=2,
     mapping_coarse_segments=2,
-    # 20 tracking iterations with larger, decaying steps instead of 100 at MonoGS's rates; the
-    # first 18 at a quarter of the resolution, the last 2 at the full one (14 iterations
-    # tracked worse).
-    tracking_iters=20,
+    # 30 tracking iterations with larger, decaying steps instead of 100 at MonoGS's rates; the
+    # first 28 at a quarter of the resolution, the last 2 at the full one. 20 (18 coarse) left
+    # fast motion behind, 14 tracked worse still, 40 gained nothing over 30.
+    tracking_iters=30,
     tracking_coarse_scale=0.25,
-    tracking_coarse_fraction=0.9,
+    tracking_coarse_fraction=0.934,
+    # The frame without a velocity (frame 1) starts off by the whole motion since frame 0:
+    # 100 iterations let it catch a fast start (office-l: 5 cm and 2.8 deg per frame), where
+    # 20 confused the translation with a rotation and the error grew to 22 cm.
+    tracking_iters_no_prior=100,
     lr_rot=0.006,
     lr_trans=0.006,
     tracking_lr_final=0.1,

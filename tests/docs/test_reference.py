@@ -116,7 +116,7 @@ def test_config_page_has_every_field_with_default_preset_values_and_doc(
     # the cpu preset's smaller budget shows, in bold
     assert headers is not None
     budget = dict(zip(headers, _row(sections["`budget`"], "tracking_iters"), strict=True))
-    assert (budget["default"], budget["paper"], budget["cpu"]) == ("`100`", "`100`", "**`20`**")
+    assert (budget["default"], budget["paper"], budget["cpu"]) == ("`100`", "`100`", "**`30`**")
 
 
 def test_config_field_docs_are_the_source_comments(gen: Callable[[str], ModuleType]) -> None:

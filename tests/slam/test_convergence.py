@@ -84,8 +84,8 @@ def test_the_tracker_stops_where_the_replayed_rule_does(tiny_sequence: Path) -> 
 
     seq = Sequence.open(tiny_sequence)
     base = methods.BUILTIN["monogs"].config("cpu").replace(
-        resolution_scale=1.0, init_iters=20, tracking_iters=60, mapping_iters=2,
-        converged_threshold=1e-12, tracking_lr_final=1.0,
+        resolution_scale=1.0, init_iters=20, tracking_iters=60, tracking_iters_no_prior=None,
+        mapping_iters=2, converged_threshold=1e-12, tracking_lr_final=1.0,
         tracking_coarse_scale=1.0)  # the rules watch fine iterations only: all of them here
     rule = dict(convergence="net-motion", convergence_tolerance=0.3, convergence_patience=10)
     for label, cfg in (("fixed", base), ("rule", base.replace(**rule))):

@@ -25,12 +25,15 @@ BASE = dict(resolution_scale=1.0, init_iters=6, tracking_iters=8, mapping_iters=
             tracking_coarse_scale=1.0, mapping_coarse_scale=1.0)  # levels: where a test sets them
 # the coarse levels render every sub-pose unless a test says otherwise
 ALL_SUBPOSES = dict(tracking_coarse_segments=None, mapping_coarse_segments=None)
+# frame 1 tracks with tracking_iters like every other frame
+NO_PRIOR_BUDGET = dict(tracking_iters_no_prior=None)
 
 
 def _run(seq_path: Path, out: Path, method: str = "egs", **options: Any
          ) -> tuple[RunFolder, dict[str, Any]]:
     seq = Sequence.open(seq_path)
-    cfg = methods.BUILTIN[method].config("cpu").replace(**{**BASE, **ALL_SUBPOSES, **options})
+    fields = {**BASE, **ALL_SUBPOSES, **NO_PRIOR_BUDGET, **options}
+    cfg = methods.BUILTIN[method].config("cpu").replace(**fields)
     run = run_slam(seq, out, method_name=method, config=cfg,
                    settings=RunSettings(preset="cpu", seed=0, progress=False))
     return run, json.loads((run.path / "slam_stats.json").read_text())
