@@ -9,7 +9,9 @@ blur) processed at its own 224x128 with the cpu budget (at half resolution the b
 half and the deblurring gain with it; docs/notes/slam.md).
 
 Re-running resumes: the generated sequence and finished runs are reused; the demo's own
-unfinished runs (failed, interrupted) are run again and its frame panel is rewritten.
+unfinished runs (failed, interrupted) are run again and its frame panel is rewritten. A
+finished run made with another seed or other settings (an earlier version's preset) is kept
+and the demo stops, naming it.
 """
 
 from __future__ import annotations
@@ -66,8 +68,9 @@ def run_demo(out: str | Path, *, sequence: str = DEMO_SEQUENCE,
         progress: show progress bars.
 
     Raises:
-        OutputError: a finished run in ``out`` was made with another seed (it is kept; give
-            another ``out``).
+        OutputError: a finished run in ``out`` was made with another seed or other settings
+            than this code's ``preset`` and ``options`` give (it is kept; give another
+            ``out``).
     """
     from egs_bench.datasets.inspect import save_frame_panel, sequence_summary
     from egs_bench.datasets.registry import load_sequence
@@ -103,16 +106,22 @@ def run_demo(out: str | Path, *, sequence: str = DEMO_SEQUENCE,
         run_dir = run_location(out, seq.name, method.name)
         finished = RunFolder.is_run_folder(run_dir) and \
             RunFolder.open(run_dir).read_status().state == "done"
+        if isinstance(method, ConfiguredSlamMethod) and options:
+            method = method.with_options(options)
         if finished:
-            run_seed = RunFolder.open(run_dir).read_config().get("seed")
+            record = RunFolder.open(run_dir).read_config()
+            run_seed = record.get("seed")
             if run_seed != seed:
                 raise OutputError(run_dir, f"is a finished demo run with seed {run_seed}, not "
                                            f"{seed}; give another --out to keep both")
+            changed = _changed_settings(record, method, preset, seq.meta)
+            if changed:
+                raise OutputError(run_dir, f"is a finished demo run made with other settings "
+                                           f"({changed}), e.g. an earlier version's preset; "
+                                           f"give another --out to keep both")
             say(f"      {name}: reusing finished run {run_dir}")
         else:
             extra: dict = {"overwrite": True} if supports_overwrite(method) else {}
-            if options and isinstance(method, ConfiguredSlamMethod):
-                method = method.with_options(options)
             method.run(seq, run_dir, preset=preset, device="cpu", seed=seed, max_frames=None,
                        progress=progress, **extra)
         result.runs[name] = run_dir
@@ -141,6 +150,27 @@ def run_demo(out: str | Path, *, sequence: str = DEMO_SEQUENCE,
     for name, paths in result.plots.items():
         say(f"plots ({name}): " + ", ".join(str(p) for p in paths))
     return result
+
+
+def _changed_settings(record: dict, method: object, preset: str,
+                      meta: dict | None) -> str:
+    """The settings in which a finished run's ``config.yaml`` (``record``) differs from what
+    ``method`` would run now with ``preset`` on a sequence with ``meta``: a few dotted keys,
+    ``""`` when they agree or the method has no SLAM configuration to compare."""
+    from egs_bench.eval.results import flatten
+    from egs_bench.report.config_diff import config_rows
+    from egs_bench.slam.methods import ConfiguredSlamMethod
+
+    if not isinstance(method, ConfiguredSlamMethod):
+        return ""
+    now = flatten({"slam": method.config(preset, dict(meta or {})).to_dict()})
+    stored = {"slam": record.get("slam") or {}}
+    changed = [row.key for row in config_rows(stored, now) if row.changed]
+    changed += sorted(set(now) - set(flatten(stored)))  # fields the run does not record
+    if record.get("preset") != preset:
+        changed.insert(0, "preset")
+    shown = ", ".join(changed[:3])
+    return shown + (f" and {len(changed) - 3} more" if len(changed) > 3 else "")
 
 
 def synthetic_rgbd(width: int = 224, height: int = 128) -> tuple[np.ndarray, np.ndarray,
