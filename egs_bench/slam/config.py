@@ -69,6 +69,12 @@ class LossConfig:
     lambda_i: float = 0.9               # (paper)
     lambda_d: float = 0.1               # (paper)
     lambda_iso: float = 10.0            # (paper, MonoGS)
+    # Weight of a prior lambda (a^2 + b^2) on each frame's exposure compensation exp(a) I + b,
+    # added wherever a and b are optimised (DSO's affine brightness prior). The map's radiance
+    # and the window's exposures trade against each other, and frame 0 (a = b = 0) anchors
+    # that gauge only while it is drawn, so on long runs the exposures drift although the
+    # built-in sequences have none (docs/notes/engine_cost_2026-12-06.md §8.2). 0 = off.
+    lambda_exposure_prior: float = 0.0
     # Depth term on the alpha-normalised depth sum(w z) / sum(w) instead of MonoGS's sum(w z):
     # the latter is biased short wherever the map does not yet reach alpha = 1, which on a
     # sparse, briefly optimised map pulls the tracked pose forward. The division keeps alpha
@@ -456,7 +462,7 @@ RANGES: dict[str, Bounds] = {
     "method.crf_alpha": _NON_NEGATIVE,
     "method.theta": Bounds(low=0, low_open=True, null="the sequence's thresholds"),
     **_each("loss", "lambda_ne lambda_e lambda_id lambda_i lambda_d lambda_iso edge_threshold "
-            "rgb_boundary_threshold", _NON_NEGATIVE),
+            "rgb_boundary_threshold lambda_exposure_prior", _NON_NEGATIVE),
     "tracking.short_exposure_ratio": _FRACTION,
     **_each("tracking", "lr_exposure max_translation_jump max_rotation_jump "
             "divergence_loss_factor", _POSITIVE),

@@ -76,3 +76,19 @@ def rendered_event_maps(hdr_rgb: torch.Tensor, eps: float,
 def isotropic_loss(scales: torch.Tensor) -> torch.Tensor:
     """MonoGS isotropic regulariser: mean over Gaussians and axes of |s - mean(s)| [N, 3]."""
     return (scales - scales.mean(-1, keepdim=True)).abs().mean()
+
+
+def exposure_prior_gradient(exposure_ab: np.ndarray, weight: float) -> np.ndarray:
+    """Gradient of the exposure prior ``weight * (a^2 + b^2)`` per frame (DSO's affine
+    brightness prior; ``loss.lambda_exposure_prior``).
+
+    The prior is applied on the host, where the SLAM's Adam steps the exposures, so it is a
+    numpy function; its value is not part of the reported loss.
+
+    Args:
+        exposure_ab: exposure compensation ``(a, b)`` of ``exp(a) I + b`` per frame, [..., 2].
+        weight: the prior's weight (0: no prior).
+    Returns:
+        ``2 weight (a, b)``, [..., 2] float64.
+    """
+    return 2.0 * float(weight) * np.asarray(exposure_ab, dtype=np.float64)

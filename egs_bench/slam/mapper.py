@@ -27,6 +27,7 @@ from egs_bench.slam.exposure import exposure_path
 from egs_bench.slam.frames import FrameObs, FrameState, coarse_observation
 from egs_bench.slam.host_adam import HostAdam
 from egs_bench.slam.levels import coarse_iterations
+from egs_bench.slam.losses import exposure_prior_gradient
 from egs_bench.slam.render_model import (
     LossTargets,
     blur_loss,
@@ -195,7 +196,10 @@ class Mapper:
         g_exp = []
         if free_exposure:
             e = host_grads[n_vm:].reshape(len(views), 2)
-            g_exp = [e[views.index(k)] if k in views else np.zeros(2) for k in free_exposure]
+            prior = self.cfg.loss.lambda_exposure_prior
+            g_exp = [e[views.index(k)] + exposure_prior_gradient(
+                np.array([states[k].exp_a, states[k].exp_b]), prior) if k in views
+                else np.zeros(2) for k in free_exposure]
         delta = adam.step(np.concatenate([*g_pose, *g_exp]) if (g_pose or g_exp) else
                           np.zeros(0))
         twists = (delta[:12 * len(refine)] * plan.slot_mask).reshape(len(refine), 2, 6)

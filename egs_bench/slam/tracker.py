@@ -34,6 +34,7 @@ from egs_bench.slam.exposure import exposure_path
 from egs_bench.slam.frames import FrameObs, FrameState, coarse_observation
 from egs_bench.slam.host_adam import HostAdam
 from egs_bench.slam.levels import coarse_iterations
+from egs_bench.slam.losses import exposure_prior_gradient
 from egs_bench.slam.render_model import blur_loss, prepare_targets
 
 
@@ -180,7 +181,12 @@ def track_frame(ctx: SlamContext, gmap: GaussianMap, crf: CameraResponse,
             break
         g_sub = twist_gradient(views, host[:16 * m].reshape(m, 4, 4))  # [M, 6]
         g_free = select.T @ np.einsum("mi,mij->j", g_sub, jac)
-        delta = adam.step(np.r_[g_free, host[16 * m:-1]] if use_exposure else g_free)
+        if use_exposure:
+            g_exposure = host[16 * m:-1] + exposure_prior_gradient(
+                exposure, cfg.loss.lambda_exposure_prior)
+            delta = adam.step(np.r_[g_free, g_exposure])
+        else:
+            delta = adam.step(g_free)
         steps = delta[:6 * n_free].reshape(n_free, 6)
         if n_free == 2:
             pose0 = se3_exp(steps[0]) @ pose0
