@@ -37,10 +37,10 @@ def test_gradient_matches_finite_differences_of_the_prior() -> None:
 class _RecordingAdam(HostAdam):
     """A host Adam that records every gradient it is stepped with."""
 
-    steps: list[np.ndarray] = []
+    recorded: list[np.ndarray] = []
 
     def step(self, grad: np.ndarray) -> np.ndarray:
-        type(self).steps.append(np.array(grad, dtype=np.float64))
+        type(self).recorded.append(np.array(grad, dtype=np.float64))
         return super().step(grad)
 
 
@@ -54,7 +54,7 @@ def _first_tracking_gradient(seq_path: Path, weight: float, monkeypatch: pytest.
     from egs_bench.slam.system import SlamSystem
 
     class Recording(_RecordingAdam):
-        steps: list[np.ndarray] = []
+        recorded: list[np.ndarray] = []
 
     class StartExposed(tracker.GradientTracker):
         def track(self, gmap: Any, crf: Any, request: tracker.TrackRequest
@@ -73,7 +73,7 @@ def _first_tracking_gradient(seq_path: Path, weight: float, monkeypatch: pytest.
         tracking_coarse_scale=1.0, mapping_iters=1, lambda_exposure_prior=weight)
     SlamSystem(Sequence.open(seq_path), cfg.validate(), seed=0,
                components=SlamComponents(tracker=StartExposed)).run(2)
-    return Recording.steps[0]
+    return Recording.recorded[0]
 
 
 def test_tracking_adds_the_prior_to_the_exposure_gradient_only(
@@ -93,13 +93,13 @@ def test_mapping_adds_the_prior_for_the_drawn_keyframes_only() -> None:
     states = {3: FrameState(3, np.eye(4), np.eye(4), 0.1, -0.2),
               5: FrameState(5, np.eye(4), np.eye(4), -0.3, 0.05)}
     adam = _RecordingAdam(np.full(4, 0.01))
-    _RecordingAdam.steps = []
+    _RecordingAdam.recorded = []
     plan = _HostPlan(refine=[], free_exposure=[3, 5], slot_mask=np.zeros(0), adam=adam)
     owner = SimpleNamespace(cfg=SimpleNamespace(
         loss=SimpleNamespace(lambda_exposure_prior=weight),
         method=SimpleNamespace(blur_model=True)))
     photometric = np.array([0.03, -0.04])  # d loss / d (a, b) of the one drawn view
     Mapper._host_step(owner, plan, states, [3], {}, photometric, 1)  # type: ignore[arg-type]
-    np.testing.assert_allclose(_RecordingAdam.steps[0],
+    np.testing.assert_allclose(_RecordingAdam.recorded[0],
                                [0.03 + 2 * weight * 0.1, -0.04 + 2 * weight * -0.2, 0.0, 0.0],
                                atol=1e-15)
