@@ -5,7 +5,7 @@ are copied unchanged, so the sharp frames stay at the first frame's exposure, wh
 map's brightness that the protocol scores against.
 
 It checks whether a method's per-frame exposure compensation (and a prior on it,
-``loss.lambda_exposure_prior``) still follows a real change of exposure
+``budget.lambda_exposure_prior``) still follows a real change of exposure
 (``benchmarks/sweeps/exposure_prior.yaml``). The built-in sequences have none.
 
     python benchmarks/make_gain_sequence.py data/demo-blur data/demo-blur-gain --gain-log 0.3

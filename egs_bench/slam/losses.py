@@ -80,7 +80,7 @@ def isotropic_loss(scales: torch.Tensor) -> torch.Tensor:
 
 def exposure_prior_gradient(exposure_ab: np.ndarray, weight: float) -> np.ndarray:
     """Gradient of the exposure prior ``weight * (a^2 + b^2)`` per frame (DSO's affine
-    brightness prior; ``loss.lambda_exposure_prior``).
+    brightness prior; ``budget.lambda_exposure_prior``).
 
     The prior is applied on the host, where the SLAM's Adam steps the exposures, so it is a
     numpy function; its value is not part of the reported loss.

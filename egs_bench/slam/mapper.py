@@ -196,7 +196,7 @@ class Mapper:
         g_exp = []
         if free_exposure:
             e = host_grads[n_vm:].reshape(len(views), 2)
-            prior = self.cfg.loss.lambda_exposure_prior
+            prior = self.cfg.budget.lambda_exposure_prior
             g_exp = [e[views.index(k)] + exposure_prior_gradient(
                 np.array([states[k].exp_a, states[k].exp_b]), prior) if k in views
                 else np.zeros(2) for k in free_exposure]

@@ -183,7 +183,7 @@ def track_frame(ctx: SlamContext, gmap: GaussianMap, crf: CameraResponse,
         g_free = select.T @ np.einsum("mi,mij->j", g_sub, jac)
         if use_exposure:
             g_exposure = host[16 * m:-1] + exposure_prior_gradient(
-                exposure, cfg.loss.lambda_exposure_prior)
+                exposure, cfg.budget.lambda_exposure_prior)
             delta = adam.step(np.r_[g_free, g_exposure])
         else:
             delta = adam.step(g_free)
