@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -284,9 +285,15 @@ def test_run_view_matches_render_map(sweep_out: Path, chromium: Any, tmp_path: P
     before = np.array(chromium.execute_script(camera_position))
     canvas = chromium.find_element(By.CSS_SELECTOR, "canvas.egs-view-canvas")
     chromium.find_element(By.CSS_SELECTOR, "button.egs-view-fly").click()
-    ActionChains(chromium).move_to_element(canvas).click().key_down("w").pause(0.5) \
-        .key_up("w").perform()
-    step = np.array(chromium.execute_script(camera_position)) - before
+    # Held until the camera has moved 5 cm (at most 10 s): the viewer moves it in its
+    # animation-frame loop, which a busy machine may not run within a fixed half second.
+    ActionChains(chromium).move_to_element(canvas).click().key_down("w").perform()
+    deadline = time.monotonic() + 10.0
+    step = np.zeros(3)
+    while np.linalg.norm(step) <= 0.05 and time.monotonic() < deadline:
+        time.sleep(0.1)
+        step = np.array(chromium.execute_script(camera_position)) - before
+    ActionChains(chromium).key_up("w").perform()
     forward = traj.poses[0][:3, 2]
     assert np.linalg.norm(step) > 0.05 and step @ forward > 0.9 * np.linalg.norm(step)
     chromium.find_element(By.CSS_SELECTOR, "button.egs-view-orbit").click()
