@@ -197,9 +197,12 @@ class Mapper:
         if free_exposure:
             e = host_grads[n_vm:].reshape(len(views), 2)
             prior = self.cfg.budget.lambda_exposure_prior
-            g_exp = [e[views.index(k)] + exposure_prior_gradient(
-                np.array([states[k].exp_a, states[k].exp_b]), prior) if k in views
-                else np.zeros(2) for k in free_exposure]
+            for k in free_exposure:
+                if k not in views:  # not drawn this iteration: no gradient, not even the prior's
+                    g_exp.append(np.zeros(2))
+                    continue
+                ab = np.array([states[k].exp_a, states[k].exp_b])
+                g_exp.append(e[views.index(k)] + exposure_prior_gradient(ab, prior))
         delta = adam.step(np.concatenate([*g_pose, *g_exp]) if (g_pose or g_exp) else
                           np.zeros(0))
         twists = (delta[:12 * len(refine)] * plan.slot_mask).reshape(len(refine), 2, 6)
