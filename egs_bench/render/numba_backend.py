@@ -47,7 +47,8 @@ class _CompositeTiles(torch.autograd.Function):
         m2s = _np(log_opacity_margin(opacities.detach()) * (1.0 + 2e-3) + 1e-6)
         arrs = (_np(means2d), _np(conics), _np(depths), _np(opacities), m2s.astype(
             _np(means2d).dtype), _np(colors), _np(extents))
-        isect, offsets = nk.bin_tiles(arrs[0], arrs[6], arrs[2], width, height)
+        isect, offsets = nk.bin_tiles(arrs[0], arrs[6], nk.depth_order_keys(arrs[2]), width,
+                                      height)
         dt = arrs[0].dtype
         rgb = np.empty((C, height, width, 3), dt)
         dep = np.empty((C, height, width), dt)

@@ -6,7 +6,9 @@ wrong; see ``research/rasterizer.md``). The kernels implement the rule of
 :mod:`egs_bench.render.constants`:
 
 * ``bin_tiles``: per camera, append each Gaussian to the 16x16 tiles its ``alpha >= 1/255``
-  box touches, then sort each tile's list by depth (stable, so ties keep the id order).
+  box touches, then sort each tile's list by depth (stable, so ties keep the id order), as
+  integer keys of :func:`depth_order_keys`: a radix sort, linear in the list's length (a
+  merge sort of the float depths took 80 % of the binning on a 488k-Gaussian map).
 * ``raster_fwd``: parallel over (camera, tile); every Gaussian is evaluated only on the pixels
   of each row where its ``alpha >= 1/255`` ellipse lies (exact span from the conic, then the
   alpha test as usual), clipped to the tile.
@@ -62,18 +64,105 @@ def _row_span(dy, ca, cb, cc, m2, mx, u0, u1):
     return ua, ub
 
 
+# A Gaussian whose clipped box holds no pixel it could still change composites nothing, so the
+# two checks below skip it before its row spans and exponentials and leave every output bit as
+# it was. On a 488k-Gaussian map they save a tenth of the compositing at a quarter of 448x256
+# (a tile's list there holds thousands of Gaussians behind pixels that are already opaque).
+
+@njit(inline="always")
+def _box_open(done, u0, u1, v0, v1, px0, py0):
+    """Forward: whether a pixel of box ``[u0, u1] x [v0, v1]`` of the tile at ``(px0, py0)``
+    is not yet done (``done``: the tile's flags, row-major 16 x 16)."""
+    for v in range(v0, v1 + 1):
+        row = (v - py0) * TILE - px0
+        for u in range(u0, u1 + 1):
+            if not done[row + u]:
+                return True
+    return False
+
+
+@njit(inline="always")
+def _box_reached(last, j, u0, u1, v0, v1, px0, py0):
+    """Backward: whether intersection ``j`` lies at or before the last contributor of a pixel
+    of the box (``last``: the tile's last-contributor indices, row-major 16 x 16)."""
+    for v in range(v0, v1 + 1):
+        row = (v - py0) * TILE - px0
+        for u in range(u0, u1 + 1):
+            if j <= last[row + u]:
+                return True
+    return False
+
+RADIX_BITS = 11  # bits per pass of the tile sort: 3 passes for 32-bit keys, 6 for 64-bit
+SMALL_TILE = 32  # lists up to this length are insertion-sorted (a radix pass clears 2^11 bins)
+
+
+def depth_order_keys(depth: np.ndarray) -> np.ndarray:
+    """Unsigned integers that order as the depths do: float32 -> uint32, float64 -> uint64.
+
+    The IEEE bit pattern read as an unsigned integer orders the non-negative floats; negative
+    ones get all bits flipped and the others the sign bit set, so every non-NaN value keeps its
+    place. ``-0.0`` is folded onto ``+0.0`` first, so the two tie as a float comparison says.
+    """
+    folded = depth + depth.dtype.type(0.0)  # -0.0 + 0.0 = +0.0
+    bits = folded.view(np.uint32 if depth.dtype == np.float32 else np.uint64)
+    sign = bits.dtype.type(1) << bits.dtype.type(8 * bits.dtype.itemsize - 1)
+    return np.where(bits & sign, ~bits, bits | sign)
+
+
+@njit(inline="always")
+def _sort_by_keys(ids, keys, nbits):
+    """``ids`` [n] ordered by ``keys`` [n] (unsigned), stably; returns the sorted ids (the
+    input arrays are reused as scratch). Insertion sort for short lists, else a least
+    significant digit radix sort (stable by construction)."""
+    n = ids.shape[0]
+    if n <= SMALL_TILE:
+        for i in range(1, n):
+            key = keys[i]
+            gid = ids[i]
+            j = i - 1
+            while j >= 0 and keys[j] > key:
+                keys[j + 1] = keys[j]
+                ids[j + 1] = ids[j]
+                j -= 1
+            keys[j + 1] = key
+            ids[j + 1] = gid
+        return ids
+    nbins = 1 << RADIX_BITS
+    mask = nbins - 1
+    ids_out = np.empty_like(ids)
+    keys_out = np.empty_like(keys)
+    start = np.empty(nbins + 1, np.int64)
+    for shift in range(0, nbits, RADIX_BITS):
+        start[:] = 0
+        for i in range(n):
+            start[((keys[i] >> shift) & mask) + 1] += 1
+        for b in range(nbins):
+            start[b + 1] += start[b]
+        for i in range(n):
+            digit = (keys[i] >> shift) & mask
+            pos = start[digit]
+            start[digit] = pos + 1
+            keys_out[pos] = keys[i]
+            ids_out[pos] = ids[i]
+        keys, keys_out = keys_out, keys
+        ids, ids_out = ids_out, ids
+    return ids
+
+
 @njit(cache=True, parallel=True)
-def bin_tiles(mean2d, ext, depth, W, H):
+def bin_tiles(mean2d, ext, depth_keys, W, H):
     """Depth-sorted tile lists for C cameras.
 
-    Args: mean2d [C,N,2], ext [C,N,2] (negative = culled), depth [C,N] (camera z).
+    Args: mean2d [C,N,2], ext [C,N,2] (negative = culled), depth_keys [C,N] the camera z's
+    :func:`depth_order_keys` (uint32 or uint64).
     Returns: isect [M] int32 Gaussian ids and offsets [C*T+1] int64; tile ``kt = k*T + t``
     owns ``isect[offsets[kt]:offsets[kt+1]]``, sorted by depth, ties by Gaussian id: the order
     of a stable sort of all N depths, restricted to the tile. Sorting each tile's list (a
     counting sort into tiles in id order, then a stable sort per tile) instead of all N
     Gaussians per camera skips the culled ones and runs in parallel over tiles.
     """
-    C, N = depth.shape
+    nbits = 8 * depth_keys.itemsize
+    C, N = depth_keys.shape
     TX = (W + TILE - 1) // TILE
     TY = (H + TILE - 1) // TILE
     T = TX * TY
@@ -106,12 +195,10 @@ def bin_tiles(mean2d, ext, depth, W, H):
         if n > 1:
             k = kt // T
             ids = isect[start:start + n].copy()
-            keys = np.empty(n, depth.dtype)
+            keys = np.empty(n, depth_keys.dtype)
             for i in range(n):
-                keys[i] = depth[k, ids[i]]
-            by_depth = np.argsort(keys, kind="mergesort")  # stable: ties keep id order
-            for i in range(n):
-                isect[start + i] = ids[by_depth[i]]
+                keys[i] = depth_keys[k, ids[i]]
+            isect[start:start + n] = _sort_by_keys(ids, keys, nbits)  # ties keep id order
     return isect, offsets
 
 
@@ -162,7 +249,7 @@ def raster_fwd(mean2d, conic, depth, opac, m2s, colors, ext, isect, offsets, W, 
             u1 = min(u1, px1 - 1)
             v0 = max(v0, py0)
             v1 = min(v1, py1 - 1)
-            if not ok or u0 > u1 or v0 > v1:
+            if not ok or u0 > u1 or v0 > v1 or not _box_open(done, u0, u1, v0, v1, px0, py0):
                 continue
             ca = np.float64(conic[k, g, 0])
             cb = np.float64(conic[k, g, 1])
@@ -276,8 +363,9 @@ def raster_bwd(mean2d, conic, depth, opac, m2s, colors, ext, isect, offsets, W, 
             u1 = min(u1, px1 - 1)
             v0 = max(v0, py0)
             v1 = min(v1, py1 - 1)
-            if not ok or u0 > u1 or v0 > v1:
-                continue
+            if (not ok or u0 > u1 or v0 > v1
+                    or not _box_reached(last, j, u0, u1, v0, v1, px0, py0)):
+                continue  # rows[j] stays 0
             ca = np.float64(conic[k, g, 0])
             cb = np.float64(conic[k, g, 1])
             cc = np.float64(conic[k, g, 2])
