@@ -144,6 +144,17 @@ def project_fwd(means, quats, scales, opacities, viewmats, Ks, width, height, ne
                 radii[c, n] = 0
 
 
+@njit(inline="always")
+def _no_cotangent(g_means2d, g_conics, g_depths, n, C):
+    """Whether Gaussian ``n`` has zero cotangents in every camera."""
+    for c in range(C):
+        if (g_means2d[c, n, 0] != 0.0 or g_means2d[c, n, 1] != 0.0 or g_conics[c, n, 0] != 0.0
+                or g_conics[c, n, 1] != 0.0 or g_conics[c, n, 2] != 0.0
+                or g_depths[c, n] != 0.0):
+            return False
+    return True
+
+
 @njit(cache=True, parallel=True)
 def project_bwd(means, quats, scales, viewmats, Ks, width, height, near, far, eps2d, fov_clamp,
                 g_means2d, g_conics, g_depths, g_means, g_quats, g_scales, g_view_parts):
@@ -161,6 +172,15 @@ def project_bwd(means, quats, scales, viewmats, Ks, width, height, near, far, ep
     for ch in prange(n_chunks):
         acc = g_view_parts[ch]
         for n in range(ch * CHUNK, min(N, (ch + 1) * CHUNK)):
+            if _no_cotangent(g_means2d, g_conics, g_depths, n, C):
+                # every term below would be a product with a zero cotangent: skip the
+                # Gaussians no pixel saw (most of a large map at a coarse level)
+                for i in range(3):
+                    g_means[n, i] = 0.0
+                    g_scales[n, i] = 0.0
+                for i in range(4):
+                    g_quats[n, i] = 0.0
+                continue
             (norm, w, qx, qy, qz, r00, r01, r02, r10, r11, r12, r20, r21, r22) = _rotation(
                 quats[n, 0], quats[n, 1], quats[n, 2], quats[n, 3])
             s0, s1, s2 = scales[n, 0], scales[n, 1], scales[n, 2]

@@ -137,6 +137,37 @@ def test_gradients_match_pytorch_autograd(n: int) -> None:
                                    msg=k)
 
 
+def test_gradients_with_sparse_cotangents_match_pytorch_autograd() -> None:
+    """The backward skips Gaussians whose cotangents are zero in every camera (most of a large
+    map at a coarse level): those get exact zeros, and a Gaussian with a single non-zero
+    cotangent entry (only its depth, only one conic entry in one camera) gets its full
+    gradient."""
+    (s_ref, ref), (s_got, got) = _both(_edge_scene(300, 3, 12))
+    gen = torch.Generator().manual_seed(13)
+    cot = [torch.randn(t.shape, generator=gen, dtype=torch.float64)
+           for t in (ref.means2d, ref.conics, ref.depths)]
+    seen = torch.nonzero(ref.valid[:, 150:].all(0)).flatten() + 150
+    depth_only, one_entry = torch.arange(100, 150), seen[:20]
+    silent = torch.ones(300, dtype=torch.bool)
+    silent[:150] = silent[one_entry] = False
+    cot[0][:, 100:] = cot[1][:, 100:] = 0.0
+    cot[2][:, 150:] = 0.0
+    cot[1][1, one_entry[:10], 1] = 0.7  # camera 1's conic b alone
+    cot[1][2, one_entry[10:], 2] = -1.5  # camera 2's conic c alone
+    for p in (ref, got):
+        loss = sum((t * g).sum() for t, g in zip((p.means2d, p.conics, p.depths), cot,
+                                                 strict=True))
+        loss.backward()
+    for k in DIFFERENTIABLE:
+        g_ref, g_got = s_ref[k].grad, s_got[k].grad
+        torch.testing.assert_close(g_got, g_ref, rtol=1e-9, atol=1e-9 * g_ref.abs().max(),
+                                   msg=k)
+        if k != "viewmats":
+            assert bool((g_got[silent] == 0).all()), k
+    for singles in (depth_only, one_entry):
+        assert bool((s_ref["means"].grad[singles].abs().sum(-1) > 0).all())
+
+
 def test_gradients_against_finite_differences() -> None:
     scene = _edge_scene(12, 2, 5)
     s = leaf_copy(scene)
