@@ -40,6 +40,12 @@ def _both(scene: dict, near: float = 0.2, far: float = 4.0) -> list[tuple[dict, 
     return out
 
 
+def _backward_with(p: Any, cot: list[torch.Tensor]) -> None:
+    """Back-propagate the cotangents ``cot`` of (means2d, conics, depths) through ``p``."""
+    loss = sum((t * g).sum() for t, g in zip((p.means2d, p.conics, p.depths), cot, strict=True))
+    loss.backward()
+
+
 @pytest.mark.parametrize("seed", [0, 1])
 def test_forward_matches_pytorch_float64(seed: int) -> None:
     (_, ref), (_, got) = _both(_edge_scene(300, 3, seed))
@@ -127,9 +133,7 @@ def test_gradients_match_pytorch_autograd(n: int) -> None:
     cot = [torch.randn(t.shape, generator=gen, dtype=torch.float64)
            for t in (ref.means2d, ref.conics, ref.depths)]
     for p in (ref, got):
-        loss = sum((t * g).sum() for t, g in zip((p.means2d, p.conics, p.depths), cot,
-                                                 strict=True))
-        loss.backward()
+        _backward_with(p, cot)
     for k in DIFFERENTIABLE:
         g_ref, g_got = s_ref[k].grad, s_got[k].grad
         assert g_ref.abs().max() > 0, k
@@ -155,9 +159,7 @@ def test_gradients_with_sparse_cotangents_match_pytorch_autograd() -> None:
     cot[1][1, one_entry[:10], 1] = 0.7  # camera 1's conic b alone
     cot[1][2, one_entry[10:], 2] = -1.5  # camera 2's conic c alone
     for p in (ref, got):
-        loss = sum((t * g).sum() for t, g in zip((p.means2d, p.conics, p.depths), cot,
-                                                 strict=True))
-        loss.backward()
+        _backward_with(p, cot)
     for k in DIFFERENTIABLE:
         g_ref, g_got = s_ref[k].grad, s_got[k].grad
         torch.testing.assert_close(g_got, g_ref, rtol=1e-9, atol=1e-9 * g_ref.abs().max(),
