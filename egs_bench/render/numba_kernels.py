@@ -92,6 +92,7 @@ def _box_reached(last, j, u0, u1, v0, v1, px0, py0):
                 return True
     return False
 
+
 RADIX_BITS = 11  # bits per pass of the tile sort: 3 passes for 32-bit keys, 6 for 64-bit
 SMALL_TILE = 32  # lists up to this length are insertion-sorted (a radix pass clears 2^11 bins)
 
