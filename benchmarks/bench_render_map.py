@@ -30,6 +30,7 @@ import numpy as np
 import torch
 
 # the installed egs_bench (no path insertion), so PYTHONPATH can pick another checkout's code
+from egs_bench.errors import EgsBenchError
 from egs_bench.render.work import RenderWork, counting
 from egs_bench.slam.map_export import frame_pose, open_map
 
@@ -44,12 +45,15 @@ def main() -> None:
     ap.add_argument("--pose-only", action="store_true",
                     help="gradients to the poses only (tracking); default: map and poses")
     args = ap.parse_args()
-    src = open_map(args.run)
-    if src.appearance is None:
-        sys.exit(f"{args.run}: no appearance.json (needed for the camera)")
+    try:
+        src = open_map(args.run)
+        if src.appearance is None:
+            sys.exit(f"{args.run}: no appearance.json (needed for the camera)")
+        world_to_cam = np.linalg.inv(frame_pose(src, args.frame))
+    except EgsBenchError as err:  # a missing or unfinished run, a frame it does not have
+        sys.exit(f"bench_render_map: {err}")
     cam = src.appearance.camera
     gmap = src.gmap.clone().requires_grad_(not args.pose_only)
-    world_to_cam = np.linalg.inv(frame_pose(src, args.frame))
     views = torch.tensor(np.stack([world_to_cam] * args.cameras), dtype=gmap.dtype)
     views[:, 0, 3] += 0.003 * torch.arange(args.cameras, dtype=gmap.dtype)
     print(f"{args.run}: {len(gmap)} Gaussians, frame {args.frame}, {args.cameras} cameras, "
