@@ -95,8 +95,10 @@ class _CompositeTiles(torch.autograd.Function):
         out = np.zeros((C, N, nk.NGRAD), dt)
         nk.reduce_rows(isect, offsets, rows, _n_tiles(width, height), out)
         grads = torch.from_numpy(out)
-        return (grads[..., 0:2], grads[..., 2:5], grads[..., 9], grads[..., 8].sum(0),
-                grads[..., 5:8].sum(0), None, None, None)
+        need = ctx.needs_input_grad  # tracking differentiates the poses only: no map sums
+        return (grads[..., 0:2], grads[..., 2:5], grads[..., 9],
+                grads[..., 8].sum(0) if need[3] else None,
+                grads[..., 5:8].sum(0) if need[4] else None, None, None, None)
 
 
 def composite_tiles(

@@ -214,6 +214,15 @@ class BudgetConfig:
     # and sums the events of the segments it merges (egs_bench/slam/levels.py).
     tracking_coarse_segments: int | None = None  # Kc of tracking's coarse level
     mapping_coarse_segments: int | None = None   # Kc of mapping's coarse level
+    # Early end of tracking's coarse level (0 = off): once T_tau has moved less than
+    # tracking_coarse_tolerance of the path its steps took over the last this-many coarse
+    # iterations (the net-motion rule, egs_bench/slam/convergence.py), the steps go back and
+    # forth around the coarse optimum, and tracking goes on with the fine iterations, at the
+    # learning rate their place in the schedule gives them. Off: it saved 10-22 % of the
+    # time per frame for +49 to +116 % ATE on 30 frames of office-l
+    # (docs/notes/engine_cost_2026-12-06.md §12).
+    tracking_coarse_patience: int = 0
+    tracking_coarse_tolerance: float = 0.3  # net motion / path below which the coarse level ends
     # Which pixels of a new keyframe may become Gaussians (1 in pcd_downsample of them):
     # "all" valid ones (MonoGS), or "uncovered": rendered opacity below insertion_alpha or
     # expected depth off by more than insertion_depth_error x the measured depth.
@@ -493,6 +502,8 @@ RANGES: dict[str, Bounds] = {
     **_each("budget", "lr_rot lr_trans lr_means lr_colors lr_opacity lr_scales", _POSITIVE),
     "budget.lambda_exposure_prior": _NON_NEGATIVE,
     "budget.converged_threshold": _NON_NEGATIVE,
+    "budget.tracking_coarse_patience": _ITERATIONS,
+    "budget.tracking_coarse_tolerance": Bounds(low=0, high=1, low_open=True, high_open=True),
     **_each("budget", "tracking_coarse_scale mapping_coarse_scale",
             Bounds(low=0, high=1, low_open=True)),
     **_each("budget", "tracking_coarse_fraction mapping_coarse_fraction insertion_alpha",

@@ -43,3 +43,8 @@ class HostAdam:
         delta = -(self.lr / bias1) * self.m / (np.sqrt(self.v) / bias2_sqrt + self.eps)
         self.lr = self.lr * self.gamma
         return delta
+
+    def skip(self, n: int) -> None:
+        """Advance the learning-rate decay by ``n`` steps without an update (iterations a
+        schedule leaves out)."""
+        self.lr = self.lr * self.gamma ** n

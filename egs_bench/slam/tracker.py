@@ -152,8 +152,13 @@ def track_frame(ctx: SlamContext, gmap: GaussianMap, crf: CameraResponse,
     loss_val, it, converged = math.inf, 0, False
     trace: list[tuple[float, float, np.ndarray]] = []
     settled = ConvergenceTest.from_config(cfg.tracking)
-    for step_i in range(1, n_iters + 1):
-        it = step_i
+    coarse_patience = cfg.budget.tracking_coarse_patience
+    coarse_settled = ConvergenceTest("net-motion", cfg.budget.tracking_coarse_tolerance,
+                                     coarse_patience) if coarse_patience and n_coarse else None
+    step_i = 0
+    while step_i < n_iters:
+        step_i += 1
+        it += 1
         # Map from the free twists (xi_0, xi_1 | xi_1) to the end twists (xi_0, xi_1) [12, 6n].
         select = np.zeros((12, 6 * n_free))
         if anchor is not None:
@@ -197,6 +202,10 @@ def track_frame(ctx: SlamContext, gmap: GaussianMap, crf: CameraResponse,
         if request.trace:
             trace.append((loss_val, step_norm, pose1.copy()))
         if coarse:
+            if coarse_settled is not None and step_i < n_coarse and \
+                    coarse_settled.update(loss_val, step_norm, pose1):
+                adam.skip(n_coarse - step_i)  # the fine iterations keep their learning rate
+                step_i = n_coarse
             continue
         if settled.update(loss_val, step_norm, pose1) or \
                 step_norm < cfg.budget.converged_threshold:

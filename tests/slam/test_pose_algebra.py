@@ -154,3 +154,28 @@ def test_host_adam_equals_torch_adam_with_exponential_decay() -> None:
         ours += host.step(grad)
     np.testing.assert_allclose(ours, torch.cat([g.detach() for g in groups]).numpy(),
                                rtol=1e-12, atol=1e-15)
+
+
+def test_host_adam_skip_advances_the_decay_as_the_scheduler_does() -> None:
+    """``skip(n)`` leaves the moments alone and moves the learning rate n scheduler steps on:
+    the next update equals torch's after n scheduler steps without an optimiser step."""
+    rng = np.random.default_rng(5)
+    gamma, lr = 0.8, np.array([0.01, 0.02, 0.03])
+    grads = rng.normal(size=(2, 3))
+    host = HostAdam(lr, gamma)
+    ours = host.step(grads[0])
+    host.skip(4)
+    ours = ours + host.step(grads[1])
+    # torch with one group per element, lr decayed by gamma^(1 + 4) before the second step
+    expected = np.zeros(3)
+    for i in range(3):
+        p = torch.zeros(1, dtype=torch.float64, requires_grad=True)
+        o = torch.optim.Adam([p], lr=float(lr[i]))
+        s = torch.optim.lr_scheduler.ExponentialLR(o, gamma)
+        for step, scheduler_steps in ((0, 1 + 4), (1, 1)):
+            p.grad = torch.tensor([grads[step, i]], dtype=torch.float64)
+            o.step()
+            for _ in range(scheduler_steps):
+                s.step()
+        expected[i] = float(p.detach()[0])
+    np.testing.assert_allclose(ours, expected, rtol=1e-12, atol=1e-15)
