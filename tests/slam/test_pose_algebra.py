@@ -166,7 +166,8 @@ def test_host_adam_skip_advances_the_decay_as_the_scheduler_does() -> None:
     ours = host.step(grads[0])
     host.skip(4)
     ours = ours + host.step(grads[1])
-    # torch with one group per element, lr decayed by gamma^(1 + 4) before the second step
+    # torch, one optimiser per element (per-element rates): its scheduler steps 1 + 4 times
+    # between the two updates
     expected = np.zeros(3)
     for i in range(3):
         p = torch.zeros(1, dtype=torch.float64, requires_grad=True)
