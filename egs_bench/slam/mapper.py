@@ -22,6 +22,7 @@ from egs_bench.interrupts import raise_if_interrupted
 from egs_bench.render import GaussianMap
 from egs_bench.slam.config import MappingConfig
 from egs_bench.slam.context import SlamContext
+from egs_bench.slam.contribution import low_contribution
 from egs_bench.slam.crf import CameraResponse
 from egs_bench.slam.exposure import exposure_path
 from egs_bench.slam.frames import FrameObs, FrameState, coarse_observation
@@ -255,11 +256,25 @@ class Mapper:
             self.gmap.colors.clamp_(min=0.0)
 
     def _prune(self, min_opacity: float) -> int:
-        remove = self.gmap.opacities.detach() < min_opacity
-        if bool(remove.all()):  # never empty the map entirely
+        return self._remove(self.gmap.opacities.detach() < min_opacity)
+
+    def _prune_by_contribution(self, states: dict[int, FrameState], window: list[int],
+                               min_pixels: float) -> int:
+        """Remove the Gaussians in view of the window's keyframes whose blending weight summed
+        over them (each rendered sharp at the middle of its exposure, at mapping's coarse level)
+        is below ``min_pixels`` internal-resolution pixels; those out of every view stay."""
+        mid = np.array([0.5])
+        poses = np.stack([exposure_path(states[k].pose0_cw, states[k].pose1_cw, mid)[0][0]
+                          for k in window])
+        viewmats = torch.from_numpy(poses).to(device=self.gmap.device, dtype=self.gmap.dtype)
+        return self._remove(low_contribution(self.ctx, self.gmap, viewmats,
+                                             self.cfg.budget.mapping_coarse_scale, min_pixels))
+
+    def _remove(self, remove: torch.Tensor) -> int:
+        """Prune the Gaussians where ``remove`` [N] holds, unless that would empty the map."""
+        if bool(remove.all()):
             return 0
-        removed = self.gmap.prune(remove)
-        return removed
+        return self.gmap.prune(remove)
 
 
 @dataclass
@@ -371,4 +386,6 @@ class MappingRound:
                 mapper._prune(cfg.mapping.init_prune_opacity)
             elif self.prune_due:
                 mapper._prune(cfg.mapping.prune_opacity)
+        if self.prune_due and cfg.budget.prune_contribution > 0:
+            mapper._prune_by_contribution(self.states, self.window, cfg.budget.prune_contribution)
         return self.loss
