@@ -619,9 +619,10 @@ def paper_preset() -> SlamConfig:
 
 CPU_BUDGET = BudgetConfig(
     # The sequence's full resolution, with most iterations at a coarse level: more accurate
-    # than half the resolution for fewer blends, at 1.2x its time per frame on 2 cores over 24
-    # frames and 1.5x over 150, as the map grows (BENCHMARKS.md "Accuracy per work";
-    # docs/notes/engine_cost_2026-12-06.md). K = 3: each sub-pose is a render; the coarse
+    # than half the resolution for fewer blends; on 2 cores 1.13x its time over 24 frames of
+    # demo-blur, 0.84-0.96x over 150 frames of 448x256, where pruning by contribution keeps
+    # the map small (BENCHMARKS.md "Accuracy per work"; docs/notes/engine_cost_2026-12-06.md,
+    # contribution_pruning_2026-12-07.md). K = 3: each sub-pose is a render; the coarse
     # levels render K = 2 (3 sub-poses): their blur spans a half or a quarter of the pixels
     # (K = 1 there doubled the ATE).
     resolution_scale=1.0,
