@@ -13,6 +13,7 @@ every render projects, bins and sorts them (docs/notes/contribution_pruning_2026
 
 from __future__ import annotations
 
+import numpy as np
 import torch
 
 from egs_bench.render import GaussianMap
@@ -53,18 +54,18 @@ def in_view(ctx: SlamContext, means: torch.Tensor, viewmats: torch.Tensor) -> to
         viewmats: world-to-camera poses [C, 4, 4].
 
     Returns:
-        [N] bool tensor.
+        [N] bool tensor on ``means``'s device.
     """
-    vm = viewmats.to(means)
-    cam = means.detach() @ vm[:, :3, :3].transpose(1, 2) + vm[:, None, :3, 3]  # [C, N, 3]
-    z = cam[..., 2]
-    K = ctx.K.to(means)
-    front = z > ctx.cfg.mapping.near_plane
-    zs = torch.where(front, z, torch.ones_like(z))
-    u = K[0, 0] * cam[..., 0] / zs + K[0, 2]
-    v = K[1, 1] * cam[..., 1] / zs + K[1, 2]
-    inside = front & (u >= 0) & (u < ctx.width) & (v >= 0) & (v < ctx.height)
-    return inside.any(0)
+    points = means.detach().cpu().double().numpy()
+    seen = np.zeros(len(points), dtype=bool)
+    for view in viewmats.detach().cpu().double().numpy():
+        cam = points @ view[:3, :3].T + view[:3, 3]
+        front = cam[:, 2] > ctx.cfg.mapping.near_plane
+        uv = ctx.cam.project(cam[front])
+        inside = ((uv[:, 0] >= 0) & (uv[:, 0] < ctx.width) & (uv[:, 1] >= 0)
+                  & (uv[:, 1] < ctx.height))
+        seen[np.flatnonzero(front)[inside]] = True
+    return torch.from_numpy(seen).to(means.device)
 
 
 def low_contribution(ctx: SlamContext, gmap: GaussianMap, viewmats: torch.Tensor, scale: float,
