@@ -13,11 +13,12 @@ every render projects, bins and sorts them (docs/notes/contribution_pruning_2026
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import torch
 
 from egs_bench.render import GaussianMap
-from egs_bench.render.gaussian_map import FrozenGaussians
 from egs_bench.slam.context import SlamContext
 
 
@@ -36,9 +37,9 @@ def blend_weights(ctx: SlamContext, gmap: GaussianMap, viewmats: torch.Tensor,
     Returns:
         [N] float tensor on the map's device, >= 0.
     """
-    unit = torch.ones_like(gmap.colors.detach()).requires_grad_(True)
-    probe = FrozenGaussians(gmap.means.detach(), gmap.quats.detach(), gmap.scales.detach(),
-                            gmap.opacities.detach(), unit)
+    frozen = gmap.frozen()
+    unit = torch.ones_like(frozen.colors).requires_grad_(True)
+    probe = replace(frozen, colors=unit)
     res = ctx.render(probe, viewmats, phase="mapping", scale=scale)
     (grad,) = torch.autograd.grad(res.rgb[..., 0].sum(), unit)
     cam = ctx.level(scale).cam
